@@ -1,0 +1,9 @@
+// The private extension module preisach._core: one register_<area>() per area.
+#include "common.hpp"
+
+PYBIND11_MODULE(_core, m) {
+    m.doc() = "C++ core of preisach (private: use the preisach package).";
+    register_everett(m);
+    register_state(m);
+    register_simulator(m);
+}

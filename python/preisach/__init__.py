@@ -1,0 +1,38 @@
+"""preisach: fast Preisach hysteresis models for piezoceramic actuators.
+
+The simulator, the state (the Preisach boundary) and the Everett table live in the C++
+extension :mod:`preisach._core`; this package is the typed Python surface around it.
+Volts in, volts out, seconds; relays switch on at ``alpha`` and off at ``beta`` (``alpha >=
+beta``), ``r = (alpha - beta) / 2`` and ``s = (alpha + beta) / 2``.
+"""
+
+from __future__ import annotations
+
+try:
+    from . import _core
+except ImportError as exc:  # pragma: no cover - only without a built extension
+    raise ImportError(
+        "preisach._core (the compiled C++ core) is missing. Install the package with "
+        "`pip install .` (or `pip install -e .`) from the source tree; a plain checkout on "
+        "PYTHONPATH has no compiled core."
+    ) from exc
+
+from .errors import PreisachError, PreisachWarning, RecordingFormatError
+from .model import BUILTIN_MODELS, PreisachModel, SimulationResult, Slopes, State
+from .surface import TABLE_3_1, SqrtSurface
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BUILTIN_MODELS",
+    "PreisachError",
+    "PreisachModel",
+    "PreisachWarning",
+    "RecordingFormatError",
+    "SimulationResult",
+    "Slopes",
+    "SqrtSurface",
+    "State",
+    "TABLE_3_1",
+    "__version__",
+]

@@ -1,0 +1,574 @@
+"""The classical Preisach model: construction, states, simulation, read-out, save/load.
+
+Conventions used throughout :mod:`preisach`:
+
+* volts in, volts out, seconds;
+* a relay :math:`\\gamma_{\\alpha\\beta}` switches to +1 when ``u >= alpha`` and to -1 when
+  ``u <= beta``, with ``alpha >= beta``; in the thesis's other coordinates
+  ``r = (alpha - beta) / 2`` (half-width) and ``s = (alpha + beta) / 2`` (offset);
+* the Everett function ``E(alpha, beta)`` is the weight inside the triangle
+  ``beta <= beta' <= alpha' <= alpha``; from first-order descending (FOD) data
+  ``E = (y(alpha, alpha) - y(alpha, beta)) / 2`` (Mayergoyz);
+* ``y_min``/``y_max`` are the outputs at negative/positive saturation, and
+  ``y_max = y_min + 2 E(u_max, u_min)``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import _core
+from .surface import TABLE_3_1, SqrtSurface
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = ["PreisachModel", "SimulationResult", "Slopes", "State", "BUILTIN_MODELS"]
+
+State = _core.State
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Names accepted by :meth:`PreisachModel.builtin`: the SS15 surfaces of Table 3.1.
+BUILTIN_MODELS: dict[str, int] = {"ss15-1hz": 1, "ss15-2hz": 2, "ss15-4hz": 4}
+
+_FORMAT = "preisach-model"
+_FORMAT_VERSION = 1
+_POLICIES = ("clamp", "raise")
+
+
+class Slopes(NamedTuple):
+    """One-sided derivatives dy/du (V/V) of the output at a state (Appendix A).
+
+    Attributes
+    ----------
+    rising : float
+        Slope if the input increases next (Eq A.13).
+    falling : float
+        Slope if the input decreases next (Eq A.27).
+    """
+
+    rising: float
+    falling: float
+
+    @property
+    def interval(self) -> tuple[float, float]:
+        """Subderivative interval at a reversal (Eq A.31): ``(min, max)`` of the two slopes."""
+        return (min(self.rising, self.falling), max(self.rising, self.falling))
+
+
+@dataclass
+class SimulationResult:
+    """Result of :meth:`PreisachModel.simulate`.
+
+    Unpacks like a tuple: ``t, y = model.simulate(u)``.
+
+    Attributes
+    ----------
+    time : ndarray
+        Sample times (s).
+    input : ndarray
+        Input samples (V), after the out-of-range policy was applied.
+    output : ndarray
+        Output samples (V).
+    initial_state, final_state : State
+        Boundary before the first and after the last sample.
+    """
+
+    time: NDArray[np.float64]
+    input: NDArray[np.float64]
+    output: NDArray[np.float64]
+    initial_state: State
+    final_state: State
+    model_name: str = ""
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def __iter__(self) -> Iterator[NDArray[np.float64]]:
+        yield self.time
+        yield self.output
+
+    def __len__(self) -> int:
+        return len(self.output)
+
+    def plot(self, *, fig: Figure | None = None) -> Figure:
+        """Plot input and output against time, and the input-output loop; returns the figure."""
+        from .plotting import plot_simulation
+
+        return plot_simulation(self, fig=fig)
+
+
+def _as_levels(levels: ArrayLike | int, u_min: float, u_max: float) -> NDArray[np.float64]:
+    if np.ndim(levels) == 0:
+        n = int(levels)  # type: ignore[arg-type]
+        if n < 2:
+            raise ValueError(f"levels: need at least 2 grid levels, got {n}")
+        return np.linspace(u_min, u_max, n)
+    lv = np.asarray(levels, dtype=float)
+    if lv.ndim != 1 or lv.size < 2:
+        raise ValueError("levels: expected an increasing 1-D array of at least 2 input levels (V)")
+    if not np.all(np.isfinite(lv)) or np.any(np.diff(lv) <= 0):
+        raise ValueError("levels: must be finite and strictly increasing")
+    return lv
+
+
+def _lower_grid(levels: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    a, b = np.meshgrid(levels, levels, indexing="ij")
+    return a, np.minimum(b, a)
+
+
+class PreisachModel:
+    """Classical Preisach model held as an Everett table; simulation runs in C++.
+
+    Build one with :meth:`from_fod_grid`, :meth:`from_everett`, :meth:`from_weights`,
+    :meth:`from_surface` or :meth:`builtin`; load one with :meth:`load`.
+
+    Parameters
+    ----------
+    table : preisach._core.EverettTable
+        The tabulated Everett function (V) on a grid of input levels (V).
+    name : str, optional
+        Free-form name, kept by :meth:`save`.
+    metadata : dict, optional
+        JSON-serialisable information about the model's origin, kept by :meth:`save`.
+    out_of_range : {"clamp", "raise"}
+        What :meth:`simulate` does with inputs outside ``[u_min, u_max]``: clamp them to the
+        range (default) or raise :class:`ValueError` naming the first offending sample.
+    """
+
+    def __init__(
+        self,
+        table: _core.EverettTable,
+        *,
+        name: str = "",
+        metadata: dict[str, Any] | None = None,
+        out_of_range: str = "clamp",
+    ) -> None:
+        if not isinstance(table, _core.EverettTable):
+            raise TypeError(f"table: expected preisach._core.EverettTable, got {type(table).__name__}")
+        if out_of_range not in _POLICIES:
+            raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {out_of_range!r}")
+        self._table = table
+        self.name = name
+        self.metadata: dict[str, Any] = dict(metadata or {})
+        self.out_of_range = out_of_range
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_fod_grid(cls, levels: ArrayLike, y_grid: ArrayLike, **kwargs: Any) -> PreisachModel:
+        """Mayergoyz identification from first-order descending (FOD) curve samples.
+
+        Parameters
+        ----------
+        levels : array_like, shape (n,)
+            Increasing input levels (V).
+        y_grid : array_like, shape (n, n)
+            ``y_grid[i, j]`` is the output (V) at input ``levels[j]`` on the FOD curve that rose
+            from negative saturation to ``levels[i]``; needed for ``j <= i`` (the rest is
+            ignored).  ``y_grid[i, i]`` is the output at the turning point.
+        **kwargs
+            Passed to the constructor (``name``, ``metadata``, ``out_of_range``).
+
+        Returns
+        -------
+        PreisachModel
+            ``E[i, j] = (y_grid[i, i] - y_grid[i, j]) / 2``; ``y_min`` is the mean of the FOD
+            end points ``y_grid[:, 0]``.
+        """
+        lv = _as_levels(levels, 0.0, 1.0)
+        y = np.asarray(y_grid, dtype=float)
+        kwargs.setdefault("metadata", {"source": "fod_grid"})
+        return cls(_core.EverettTable.from_fod(lv, y), **kwargs)
+
+    @classmethod
+    def from_everett(
+        cls,
+        func: Callable[[NDArray[np.float64], NDArray[np.float64]], ArrayLike],
+        levels: ArrayLike | int,
+        *,
+        y_min: float | None = None,
+        u_range: tuple[float, float] | None = None,
+        **kwargs: Any,
+    ) -> PreisachModel:
+        """Tabulate a Python Everett function on a grid.
+
+        Parameters
+        ----------
+        func : callable
+            ``func(alpha, beta)`` returning ``E`` (V) for arrays with ``alpha >= beta`` (V);
+            called once, vectorised, on the whole grid.
+        levels : array_like or int
+            Input levels (V), or their number when ``u_range`` is given.
+        y_min : float, optional
+            Output at negative saturation (V).  Default: ``-E(u_max, u_min)``, the symmetric
+            model whose saturated outputs are ``-/+ E(u_max, u_min)``.
+        u_range : (float, float), optional
+            ``(u_min, u_max)`` (V) when ``levels`` is a count.
+        **kwargs
+            Passed to the constructor.
+        """
+        if np.ndim(levels) == 0 and u_range is None:
+            raise ValueError("u_range: needed when levels is a number of levels")
+        lo, hi = u_range if u_range is not None else (0.0, 1.0)
+        lv = _as_levels(levels, lo, hi)
+        a, b = _lower_grid(lv)
+        values = np.asarray(func(a, b), dtype=float)
+        if values.shape != a.shape:
+            raise ValueError(f"func: returned shape {values.shape}, expected {a.shape}")
+        values = np.where(a > b, values, 0.0)
+        if not np.all(np.isfinite(values)):
+            i, j = np.argwhere(~np.isfinite(values))[0]
+            raise ValueError(f"func: E({lv[i]}, {lv[j]}) is not finite")
+        ym = -float(values[-1, 0]) if y_min is None else float(y_min)
+        kwargs.setdefault("metadata", {"source": "everett_function"})
+        return cls(_core.EverettTable(lv, values, ym), **kwargs)
+
+    @classmethod
+    def from_weights(
+        cls,
+        levels: ArrayLike,
+        weights: ArrayLike,
+        *,
+        y_min: float | None = None,
+        **kwargs: Any,
+    ) -> PreisachModel:
+        """Build from a discrete relay-weight matrix.
+
+        Parameters
+        ----------
+        levels : array_like, shape (n,)
+            Increasing input levels (V); they bound the cells.
+        weights : array_like, shape (n-1, n-1)
+            ``weights[i, j]`` (V) is the mass of the Preisach weight in the cell
+            ``[levels[i], levels[i+1]] x [levels[j], levels[j+1]]`` (alpha x beta), ``j <= i``;
+            the diagonal cells are the half-cells below the diagonal and hold the reversible
+            part (kappa).  Entries above the diagonal must be zero.
+        y_min : float, optional
+            Output at negative saturation (V).  Default ``-weights.sum()``: the classical
+            model ``y = sum(w * gamma)``.
+        **kwargs
+            Passed to the constructor.
+        """
+        lv = _as_levels(levels, 0.0, 1.0)
+        w = np.asarray(weights, dtype=float)
+        if w.shape == (lv.size - 1, lv.size - 1) and np.any(np.triu(w, 1) != 0):
+            raise ValueError("weights: entries above the diagonal (beta > alpha) must be zero")
+        ym = -float(np.sum(w)) if y_min is None else float(y_min)
+        kwargs.setdefault("metadata", {"source": "weights"})
+        return cls(_core.EverettTable.from_weights(lv, w, ym), **kwargs)
+
+    @classmethod
+    def from_surface(
+        cls, surface: SqrtSurface, levels: ArrayLike | int = 201, **kwargs: Any
+    ) -> PreisachModel:
+        """Tabulate a square-root FOD surface (Eq 3.2) on ``levels`` (count or array, V)."""
+        kwargs.setdefault("metadata", {"source": "sqrt_surface", "surface": surface.to_dict()})
+        return cls.from_everett(
+            surface.everett, levels, y_min=surface.y_min,
+            u_range=(surface.u_min, surface.u_max), **kwargs,
+        )
+
+    @classmethod
+    def builtin(cls, name: str = "ss15-1hz", levels: ArrayLike | int = 201) -> PreisachModel:
+        """The SS15 piezo bimorph models of the thesis, rebuilt from Table 3.1 via Eq 3.2.
+
+        Parameters
+        ----------
+        name : {"ss15-1hz", "ss15-2hz", "ss15-4hz"}
+            Identification frequency of the surface.
+        levels : int or array_like
+            Grid on which the surface is tabulated (default 201 levels, 1 V apart).
+
+        Returns
+        -------
+        PreisachModel
+            Input ``V_in`` (V, amplifier output) on [-100, 100]; output the strain-gauge
+            voltage (V).
+        """
+        key = name.lower()
+        if key not in BUILTIN_MODELS:
+            raise ValueError(f"name: unknown built-in model {name!r}; choose from {sorted(BUILTIN_MODELS)}")
+        surf = TABLE_3_1[BUILTIN_MODELS[key]]
+        model = cls.from_surface(surf, levels, name=key)
+        model.metadata["builtin"] = key
+        return model
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def table(self) -> _core.EverettTable:
+        """The C++ Everett table."""
+        return self._table
+
+    @property
+    def levels(self) -> NDArray[np.float64]:
+        """Grid levels (V)."""
+        return np.asarray(self._table.levels)
+
+    @property
+    def everett_values(self) -> NDArray[np.float64]:
+        """Everett table ``E[i, j] = E(levels[i], levels[j])`` (V), zero for ``j >= i``."""
+        return np.asarray(self._table.values)
+
+    @property
+    def u_min(self) -> float:
+        """Lower end of the input range (V)."""
+        return float(self._table.u_min)
+
+    @property
+    def u_max(self) -> float:
+        """Upper end of the input range (V)."""
+        return float(self._table.u_max)
+
+    @property
+    def y_min(self) -> float:
+        """Output at negative saturation (V)."""
+        return float(self._table.y_min)
+
+    @property
+    def y_max(self) -> float:
+        """Output at positive saturation (V)."""
+        return float(self._table.y_max)
+
+    def everett(self, alpha: ArrayLike, beta: ArrayLike) -> NDArray[np.float64]:
+        """Interpolated Everett function ``E(alpha, beta)`` (V); zero where ``alpha <= beta``."""
+        return np.asarray(self._table(alpha, beta), dtype=float)
+
+    def cell_weights(self) -> NDArray[np.float64]:
+        """Relay masses per grid cell (V), the mixed second differences of the table.
+
+        ``w[i, j]`` for ``j < i`` is the mass of ``[levels[i], levels[i+1]] x [levels[j],
+        levels[j+1]]``; ``w[i, i]`` is the mass of the diagonal half-cell (the reversible
+        part).  Negative entries mean the model is not in the class ``Mp``.
+        """
+        return np.asarray(self._table.cell_weights())
+
+    def fod_grid(self) -> NDArray[np.float64]:
+        """Model FOD outputs ``y(levels[i], levels[j])`` (V) for ``j <= i``, NaN above."""
+        e = self.everett_values
+        y = self.y_min + 2.0 * e[:, :1] - 2.0 * e
+        y[np.triu_indices(len(e), 1)] = np.nan
+        return y
+
+    # ------------------------------------------------------------------ states
+    def negative_saturation(self) -> State:
+        """Every relay at -1; input at ``u_min``."""
+        return State.negative_saturation(self.u_min, self.u_max)
+
+    def positive_saturation(self) -> State:
+        """Every relay at +1; input at ``u_max``."""
+        return State.positive_saturation(self.u_min, self.u_max)
+
+    def neutral_state(self, l: float) -> State:  # noqa: E741 (the thesis's symbol)
+        """Neutral state psi_n^l of Eq 2.17: boundary ``s = l`` near ``r = 0``, held exactly.
+
+        Parameters
+        ----------
+        l : float
+            Offset of the horizontal boundary segment (V), in ``[u_min, u_max]``; the input
+            of the state is ``l``.
+        """
+        return State.neutral(self.u_min, self.u_max, float(l))
+
+    def anhysteretic_state(self) -> State:
+        """Anhysteretic (demagnetised) state: boundary ``s = 0`` (``alpha = -beta``), input 0 V.
+
+        This is the neutral state with ``l = 0`` (the midpoint of the range when 0 V lies
+        outside it), reached by a decaying sinusoid about 0 V; the thesis's initial state.
+        """
+        l0 = 0.0 if self.u_min <= 0.0 <= self.u_max else 0.5 * (self.u_min + self.u_max)
+        return self.neutral_state(l0)
+
+    def state_from_extrema(self, extrema: Sequence[float], start: str = "negative") -> State:
+        """State reached from a saturation by visiting the given input values in order.
+
+        Parameters
+        ----------
+        extrema : sequence of float
+            Input values (V), e.g. an alternating sequence of maxima and minima; values that
+            are not dominant are wiped out as the model would.
+        start : {"negative", "positive"}
+            Saturation the input starts from.
+        """
+        if start not in ("negative", "positive"):
+            raise ValueError(f"start: expected 'negative' or 'positive', got {start!r}")
+        s0 = self.negative_saturation() if start == "negative" else self.positive_saturation()
+        return s0.apply([float(x) for x in extrema])
+
+    def readout(self, state: State) -> float:
+        """Output Gamma(psi) of a state (V), without simulating (Eq 2.16)."""
+        return float(_core.readout(self._table, state))
+
+    def slopes(self, state: State) -> Slopes:
+        """One-sided derivatives dy/du (V/V) at a state (Appendix A, Eq A.13/A.27/A.31)."""
+        return Slopes(*_core.Simulator(self._table, state).slopes())
+
+    # ------------------------------------------------------------------ simulation
+    def simulator(self, state: State | None = None) -> _core.Simulator:
+        """A step-by-step simulator (``step(u)``, ``run(u)``, ``state``, ``slopes()``)."""
+        return _core.Simulator(self._table, self.anhysteretic_state() if state is None else state)
+
+    def _policy(self, out_of_range: str | None) -> str:
+        pol = self.out_of_range if out_of_range is None else out_of_range
+        if pol not in _POLICIES:
+            raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {pol!r}")
+        return pol
+
+    def simulate(
+        self,
+        u: ArrayLike,
+        state: State | None = None,
+        t: ArrayLike | None = None,
+        *,
+        sample_time: float = 1e-3,
+        out_of_range: str | None = None,
+    ) -> SimulationResult:
+        """Simulate the output for the input samples ``u``.
+
+        Parameters
+        ----------
+        u : array_like, shape (n,)
+            Input (V).  NaN or inf raises :class:`ValueError` naming the sample index.
+        state : State, optional
+            Initial boundary; default the anhysteretic state.  The first sample moves the
+            input from ``state.input`` to ``u[0]``.
+        t : array_like, optional
+            Sample times (s); default ``arange(n) * sample_time``.
+        sample_time : float
+            Sampling period (s) used when ``t`` is not given.
+        out_of_range : {"clamp", "raise"}, optional
+            Overrides the model's policy for inputs outside ``[u_min, u_max]``.
+
+        Returns
+        -------
+        SimulationResult
+        """
+        pol = self._policy(out_of_range)
+        uu = np.ascontiguousarray(u, dtype=float)
+        if uu.ndim != 1:
+            raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
+        s0 = self.anhysteretic_state() if state is None else state
+        y, final = _core.simulate(self._table, uu, s0, pol)
+        if t is None:
+            tt = np.arange(uu.size) * float(sample_time)
+        else:
+            tt = np.asarray(t, dtype=float)
+            if tt.shape != uu.shape:
+                raise ValueError(f"t: shape {tt.shape} does not match u {uu.shape}")
+        return SimulationResult(tt, np.clip(uu, self.u_min, self.u_max), y, s0, final, self.name)
+
+    def simulate_batch(
+        self,
+        u: ArrayLike,
+        states: State | Sequence[State] | None = None,
+        *,
+        threads: int = 0,
+        out_of_range: str | None = None,
+    ) -> tuple[NDArray[np.float64], list[State]]:
+        """Simulate many runs at once on all cores (the GIL is released).
+
+        Parameters
+        ----------
+        u : array_like, shape (runs, n)
+            One input (V) per row.
+        states : State or sequence of State, optional
+            One initial state for all rows, or one per row; default anhysteretic.
+        threads : int
+            Worker threads; 0 uses every core.
+        out_of_range : {"clamp", "raise"}, optional
+            Overrides the model's policy.
+
+        Returns
+        -------
+        y : ndarray, shape (runs, n)
+            Outputs (V).
+        final_states : list of State
+        """
+        uu = np.ascontiguousarray(u, dtype=float)
+        if uu.ndim != 2:
+            raise ValueError(f"u: expected a 2-D array (runs, samples), got shape {uu.shape}")
+        if states is None:
+            st = [self.anhysteretic_state()]
+        elif isinstance(states, State):
+            st = [states]
+        else:
+            st = list(states)
+        if threads < 0:
+            raise ValueError(f"threads: must be >= 0, got {threads}")
+        y, finals = _core.simulate_batch(self._table, uu, st, self._policy(out_of_range), threads)
+        return y, list(finals)
+
+    # ------------------------------------------------------------------ persistence
+    def save(self, path: PathLike) -> None:
+        """Write the model to an ``.npz`` file (versioned format, exact round trip)."""
+        meta = {"name": self.name, "metadata": self.metadata, "out_of_range": self.out_of_range}
+        with open(path, "wb") as f:
+            np.savez(
+                f,
+                format=np.array(_FORMAT),
+                version=np.array(_FORMAT_VERSION),
+                levels=self.levels,
+                everett=self.everett_values,
+                y_min=np.array(self.y_min),
+                info=np.array(json.dumps(meta)),
+            )
+
+    @classmethod
+    def load(cls, path: PathLike) -> PreisachModel:
+        """Read a model written by :meth:`save`.
+
+        Raises
+        ------
+        ValueError
+            If the file is not a preisach model or its format version is newer than this
+            package understands.
+        """
+        try:
+            data = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"{os.fspath(path)}: not a readable model file ({exc})") from exc
+        with data:
+            if "format" not in data.files or str(data["format"]) != _FORMAT:
+                raise ValueError(f"{os.fspath(path)}: not a preisach model file")
+            version = int(data["version"])
+            if version > _FORMAT_VERSION:
+                raise ValueError(
+                    f"{os.fspath(path)}: model format version {version} is newer than this "
+                    f"package supports ({_FORMAT_VERSION}); upgrade preisach"
+                )
+            table = _core.EverettTable(data["levels"], data["everett"], float(data["y_min"]))
+            meta = json.loads(str(data["info"]))
+        return cls(table, name=meta.get("name", ""), metadata=meta.get("metadata", {}),
+                   out_of_range=meta.get("out_of_range", "clamp"))
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"table": self._table, "name": self.name, "metadata": self.metadata,
+                "out_of_range": self.out_of_range}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self._table = state["table"]
+        self.name = state["name"]
+        self.metadata = state["metadata"]
+        self.out_of_range = state["out_of_range"]
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, PreisachModel):
+            return NotImplemented
+        return (
+            np.array_equal(self.levels, other.levels)
+            and np.array_equal(self.everett_values, other.everett_values)
+            and self.y_min == other.y_min
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        nm = f"{self.name!r}, " if self.name else ""
+        return (
+            f"PreisachModel({nm}{len(self.levels)} levels on [{self.u_min:g}, {self.u_max:g}] V, "
+            f"y in [{self.y_min:.4g}, {self.y_max:.4g}] V)"
+        )
