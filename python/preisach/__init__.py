@@ -19,6 +19,7 @@ except ImportError as exc:  # pragma: no cover - only without a built extension
 
 from .errors import PreisachError, PreisachWarning, RecordingFormatError
 from .model import BUILTIN_MODELS, PreisachModel, SimulationResult, Slopes, State
+from .recording import Recording, RecordingWriter
 from .surface import TABLE_3_1, SqrtSurface
 
 __version__ = "0.1.0"
@@ -28,7 +29,9 @@ __all__ = [
     "PreisachError",
     "PreisachModel",
     "PreisachWarning",
+    "Recording",
     "RecordingFormatError",
+    "RecordingWriter",
     "SimulationResult",
     "Slopes",
     "SqrtSurface",

@@ -72,22 +72,34 @@ class SimulationResult:
     Attributes
     ----------
     time : ndarray
-        Sample times (s).
+        Sample times (s); built on first access when the simulation was given only a
+        sample time.
     input : ndarray
-        Input samples (V), after the out-of-range policy was applied.
+        Input samples (V) as given (values outside the model range were clamped by the
+        simulator, or raised, per ``out_of_range``).
     output : ndarray
         Output samples (V).
     initial_state, final_state : State
         Boundary before the first and after the last sample.
+    sample_time : float
+        Sampling period (s) used when no time array was given.
     """
 
-    time: NDArray[np.float64]
     input: NDArray[np.float64]
     output: NDArray[np.float64]
     initial_state: State
     final_state: State
+    sample_time: float = 1e-3
     model_name: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    _time: NDArray[np.float64] | None = field(default=None, repr=False)
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Sample times (s)."""
+        if self._time is None:
+            self._time = np.arange(self.output.size) * self.sample_time
+        return self._time
 
     def __iter__(self) -> Iterator[NDArray[np.float64]]:
         yield self.time
@@ -452,14 +464,15 @@ class PreisachModel:
         if uu.ndim != 1:
             raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
         s0 = self.anhysteretic_state() if state is None else state
-        y, final = _core.simulate(self._table, uu, s0, pol)
-        if t is None:
-            tt = np.arange(uu.size) * float(sample_time)
-        else:
+        tt = None
+        if t is not None:
             tt = np.asarray(t, dtype=float)
             if tt.shape != uu.shape:
                 raise ValueError(f"t: shape {tt.shape} does not match u {uu.shape}")
-        return SimulationResult(tt, np.clip(uu, self.u_min, self.u_max), y, s0, final, self.name)
+        if not sample_time > 0:
+            raise ValueError(f"sample_time: must be positive, got {sample_time}")
+        y, final = _core.simulate(self._table, uu, s0, pol)
+        return SimulationResult(uu, y, s0, final, float(sample_time), self.name, _time=tt)
 
     def simulate_batch(
         self,

@@ -60,10 +60,10 @@ def plot_major_loop(
     u, falls = fod_sweep_input(model.u_min, model.u_max, alphas)
     res = model.simulate(u, model.negative_saturation())
     for k, sl in enumerate(falls):
-        ax.plot(res.input[sl], res.output[sl], color="tab:blue", lw=0.8,
+        ax.plot(u[sl], res.output[sl], color="tab:blue", lw=0.8,
                 label="FOD curves" if k == 0 else None)
     last = slice(falls[-1].start - (falls[-1].stop - falls[-1].start), falls[-1].stop)
-    ax.plot(res.input[last], res.output[last], color="k", lw=1.6, label="major loop")
+    ax.plot(u[last], res.output[last], color="k", lw=1.6, label="major loop")
     ax.set_xlabel("input u (V)")
     ax.set_ylabel("output y (V)")
     ax.set_title(title or (model.name or "Preisach model"))

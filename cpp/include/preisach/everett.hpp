@@ -62,6 +62,11 @@ public:
                                                 std::to_string(j) + ") is not finite");
                 table_[i * n + j] = v;
             }
+        // Antisymmetric extension above the diagonal, E(a, b) = -E(b, a): the bilinear
+        // interpolant of a diagonal cell is then exactly the linear one of its lower
+        // half-cell, E = e (fa - fb), so every cell is interpolated without a branch.
+        for (std::size_t i = 0; i < n; ++i)
+            for (std::size_t j = i + 1; j < n; ++j) table_[i * n + j] = -table_[j * n + i];
         u_min_ = levels_.front();
         u_max_ = levels_.back();
         const double h = (u_max_ - u_min_) / double(n - 1);
@@ -80,8 +85,21 @@ public:
     double y_min() const noexcept { return y_min_; }
     double y_max() const noexcept { return y_min_ + 2.0 * node(size() - 1, 0); }
     bool uniform() const noexcept { return uniform_; }
+    // Table value at the node (i, j); for j > i this is the extension -E(levels_j, levels_i).
     double node(std::size_t i, std::size_t j) const noexcept { return table_[i * size() + j]; }
-    const std::vector<double>& raw() const noexcept { return table_; }
+
+    // Cell and fraction of u for evaluating E (u inside the range).  The interpolant is
+    // continuous, so at a grid line either neighbouring cell gives the same value; this is
+    // the branch-light look-up of the simulator's hot loop.
+    GridPos position(double u) const noexcept {
+        if (uniform_) {
+            const double x = (u - u_min_) * inv_h_;
+            std::size_t i = static_cast<std::size_t>(x);
+            i = i < levels_.size() - 2 ? i : levels_.size() - 2;
+            return {i, x - double(i)};
+        }
+        return locate(u, true);
+    }
 
     // Cell containing u, choosing the lower cell at an interior grid line (upper=false) or
     // the upper one (upper=true).  u is clamped to the grid range.
@@ -94,6 +112,10 @@ public:
             const double x = (u - u_min_) * inv_h_;
             i = static_cast<std::size_t>(x);
             if (i > n - 2) i = n - 2;
+            const double f = x - double(i);
+            if (!upper && f == 0.0 && i > 0) return {i - 1, 1.0};
+            if (upper && f >= 1.0 && i + 2 < n) return {i + 1, 0.0};
+            return {i, std::min(std::max(f, 0.0), 1.0)};
         } else {
             i = static_cast<std::size_t>(std::upper_bound(levels_.begin(), levels_.end(), u) - levels_.begin()) - 1;
             if (i > n - 2) i = n - 2;
@@ -104,15 +126,11 @@ public:
         return {i, std::min(std::max(f, 0.0), 1.0)};
     }
 
-    // E at (alpha, beta), alpha >= beta, from located positions.
+    // E at (alpha, beta), alpha >= beta, from located positions: bilinear in the cell
+    // (linear in the half-cell on the diagonal, through the antisymmetric extension).
     double value(GridPos a, GridPos b) const noexcept {
         const std::size_t n = size();
         const double* r0 = &table_[a.i * n];
-        if (a.i == b.i) {
-            // Diagonal half-cell: linear in the triangle (i,i)-(i+1,i)-(i+1,i+1).
-            const double e = table_[(a.i + 1) * n + a.i];
-            return e * (a.f - b.f);
-        }
         const double* r1 = r0 + n;
         const double e00 = r0[b.i], e01 = r0[b.i + 1], e10 = r1[b.i], e11 = r1[b.i + 1];
         return (e00 + (e10 - e00) * a.f) * (1.0 - b.f) + (e01 + (e11 - e01) * a.f) * b.f;

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -41,47 +42,69 @@ public:
 
     void reset(const State& state) {
         state.validate();
-        if (std::abs(state.u_min() - t_->u_min()) > 1e-9 * (t_->u_max() - t_->u_min()) ||
-            std::abs(state.u_max() - t_->u_max()) > 1e-9 * (t_->u_max() - t_->u_min()))
+        const double span = t_->u_max() - t_->u_min();
+        if (std::abs(state.u_min() - t_->u_min()) > 1e-9 * span || std::abs(state.u_max() - t_->u_max()) > 1e-9 * span)
             throw std::invalid_argument("state: its input range [" + std::to_string(state.u_min()) + ", " +
                                         std::to_string(state.u_max()) + "] differs from the model's [" +
                                         std::to_string(t_->u_min()) + ", " + std::to_string(t_->u_max()) + "]");
-        st_ = state;
-        cur_ = st_.input();
-        const auto& p = st_.pieces();
+        u_min_ = state.u_min();
+        u_max_ = state.u_max();
+        y_min_ = t_->y_min();
+        cur_ = state.input();
+        const auto& p = state.pieces();
         const std::size_t k = p.size();
-        S_.assign(k, 0.0);
-        Eb0_.assign(k, 0.0);
+        nodes_.clear();
+        nodes_.reserve(std::max<std::size_t>(k, 64));
         double acc = 0.0;
+        live_ = 0.0;
         for (std::size_t i = 0; i < k; ++i) {
-            S_[i] = acc;
-            if (!p[i].antidiag) Eb0_[i] = (*t_)(p[i].v, p[i].b0);
-            const double end = st_.piece_end(i);
+            Node nd{p[i], acc, p[i].antidiag ? 0.0 : (*t_)(p[i].v, p[i].b0)};
+            const double end = state.piece_end(i);
             const double c = p[i].antidiag ? t_->antidiagonal_integral(p[i].v, p[i].b0, end)
-                                           : Eb0_[i] - (*t_)(p[i].v, end);
+                                           : nd.Eb0 - (*t_)(p[i].v, end);
+            nodes_.push_back(nd);
             if (i + 1 < k) acc += c; else live_ = c;
         }
-        if (k == 0) live_ = 0.0;
         rising_ = k > 0 && !p.back().antidiag && p.back().v == cur_;
+        cur_pos_ = t_->position(cur_);
+        if (k > 0 && !p.back().antidiag) fix_ = t_->position(rising_ ? p.back().b0 : p.back().v);
+        set_limits();
         update_output();
     }
 
     // Advance by one input sample (volts, already inside the range); returns the output.
     double step(double u) {
-        if (u > cur_) rise(u);
-        else if (u < cur_) fall(u);
+        if (u == cur_) return y_;
+        const bool up = u > cur_;
+        // Continuing along the current branch without wiping out anything is the common
+        // case; it is done without branching on the direction.
+        if (up == rising_ && (up ? u < hi_ : u > lo_)) {
+            const GridPos pu = t_->position(u);
+            const GridPos a{up ? pu.i : fix_.i, up ? pu.f : fix_.f};
+            const GridPos b{up ? fix_.i : pu.i, up ? fix_.f : pu.f};
+            const double v = t_->value(a, b);
+            live_ = up ? v : eb0_ - v;
+            double& m = nodes_.back().p.v;  // the rising piece follows the input
+            m = up ? u : m;
+            cur_ = u;
+            cur_pos_ = pu;
+            update_output();
+            return y_;
+        }
+        if (up) rise(u); else fall(u);
         return y_;
     }
 
     // Input policy applied, NaN/inf rejected; `index` only names the sample in errors.
     double step_checked(double u, InputPolicy policy, std::size_t index) {
-        if (!std::isfinite(u)) throw std::invalid_argument("input u[" + std::to_string(index) + "] is not finite");
-        if (u < t_->u_min() || u > t_->u_max()) {
+        if (!(u >= u_min_ && u <= u_max_)) {  // one test for the common case; NaN fails it too
+            if (!std::isfinite(u))
+                throw std::invalid_argument("input u[" + std::to_string(index) + "] is not finite");
             if (policy == InputPolicy::raise)
                 throw std::invalid_argument("input u[" + std::to_string(index) + "] = " + std::to_string(u) +
-                                            " V is outside the model range [" + std::to_string(t_->u_min()) + ", " +
-                                            std::to_string(t_->u_max()) + "] V");
-            u = std::min(std::max(u, t_->u_min()), t_->u_max());
+                                            " V is outside the model range [" + std::to_string(u_min_) + ", " +
+                                            std::to_string(u_max_) + "] V");
+            u = std::min(std::max(u, u_min_), u_max_);
         }
         return step(u);
     }
@@ -93,125 +116,142 @@ public:
     double output() const noexcept { return y_; }
     double input() const noexcept { return cur_; }
     const EverettTable& table() const noexcept { return *t_; }
-    std::size_t depth() const noexcept { return st_.pieces().size(); }
+    std::size_t depth() const noexcept { return nodes_.size(); }
 
     State state() const {
-        State s = st_;
-        s.set_input(cur_);
-        return s;
+        std::vector<Piece> p;
+        p.reserve(nodes_.size());
+        for (const Node& nd : nodes_) p.push_back(nd.p);
+        return State(u_min_, u_max_, cur_, std::move(p));
     }
 
     Slopes slopes() const {
-        const auto& p = st_.pieces();
         const EverettTable& t = *t_;
         double up = 0.0, down = 0.0;
-        if (cur_ < t.u_max()) {
+        if (cur_ < u_max_) {
             double bstar = cur_;
-            std::size_t k = p.size();
-            while (k > 0 && p[k - 1].phi_start() <= cur_) bstar = p[--k].b0;
+            std::size_t k = nodes_.size();
+            while (k > 0 && nodes_[k - 1].p.phi_start() <= cur_) bstar = nodes_[--k].p.b0;
             up = 2.0 * t.d_alpha(cur_, bstar);
         }
-        if (cur_ > t.u_min()) {
-            std::size_t k = p.size();
-            while (k > 0 && p[k - 1].b0 >= cur_) --k;
-            if (k > 0) {
-                down = -2.0 * t.d_beta(p[k - 1].phi(cur_), cur_);
-            }
+        if (cur_ > u_min_) {
+            std::size_t k = nodes_.size();
+            while (k > 0 && nodes_[k - 1].p.b0 >= cur_) --k;
+            if (k > 0) down = -2.0 * t.d_beta(nodes_[k - 1].p.phi(cur_), cur_);
         }
         return {up, down};
     }
 
 private:
-    void update_output() noexcept { y_ = t_->y_min() + 2.0 * (st_.pieces().empty() ? 0.0 : S_.back() + live_); }
+    struct Node {
+        Piece p;
+        double S;    // sum of the contributions of the pieces below this one
+        double Eb0;  // constant pieces: E(M, b0), once the piece has stopped rising
+    };
 
-    void pop() {
-        st_.mutable_pieces().pop_back();
-        S_.pop_back();
-        Eb0_.pop_back();
+    void update_output() noexcept { y_ = y_min_ + 2.0 * (s_last_ + live_); }
+
+    // Thresholds of the fast path after the last piece changed: rising, the input may go up
+    // to hi_ (where the piece below is met); falling, down to lo_ (the start of the piece).
+    void set_limits() noexcept {
+        const std::size_t k = nodes_.size();
+        s_last_ = k ? nodes_[k - 1].S : 0.0;
+        const double inf = std::numeric_limits<double>::infinity();
+        if (rising_) {
+            hi_ = k >= 2 ? nodes_[k - 2].p.phi(nodes_[k - 1].p.b0) : inf;
+            lo_ = inf;
+        } else {
+            const bool constant = k > 0 && !nodes_[k - 1].p.antidiag;
+            lo_ = constant ? nodes_[k - 1].p.b0 : inf;  // antidiagonal or empty: slow path
+            eb0_ = constant ? nodes_[k - 1].Eb0 : 0.0;
+            hi_ = -inf;
+        }
     }
 
     void rise(double u) {
-        auto& p = st_.mutable_pieces();
-        std::size_t k = p.size();
-        // Fast path: the last piece is already rising and nothing below it is wiped out.
-        if (rising_ && (k < 2 || p[k - 2].phi_start() > u)) {
-            Piece& last = p[k - 1];
-            last.v = u;
-            live_ = (*t_)(u, last.b0);
-            cur_ = u;
-            update_output();
-            return;
-        }
+        std::size_t k = nodes_.size();
         double bstar = cur_;
-        bool popped = false;
         double s_top = 0.0;
-        while (k > 0 && p[k - 1].phi_start() <= u) {
-            bstar = p[k - 1].b0;
-            s_top = S_[k - 1];
-            pop();
+        bool popped = false;
+        while (k > 0 && nodes_[k - 1].p.phi_start() <= u) {
+            bstar = nodes_[k - 1].p.b0;
+            s_top = nodes_[k - 1].S;
+            nodes_.pop_back();
             --k;
             popped = true;
         }
         double s_new = 0.0;
         if (k > 0) {
-            const Piece& last = p[k - 1];
-            double c = popped ? s_top - S_[k - 1] : live_;  // contribution of `last` up to bstar
-            if (last.antidiag && last.v - bstar < u) {      // the rise cuts into the slope
-                const double cut = last.v - u;
-                c -= t_->antidiagonal_integral(last.v, cut, bstar);
+            const Node& last = nodes_[k - 1];
+            double c = popped ? s_top - last.S : live_;  // contribution of `last` up to bstar
+            if (last.p.antidiag && last.p.v - bstar < u) {  // the rise cuts into the slope
+                const double cut = last.p.v - u;
+                c -= t_->antidiagonal_integral(last.p.v, cut, bstar);
                 bstar = cut;
             }
-            s_new = S_[k - 1] + c;
+            s_new = last.S + c;
         } else {
-            bstar = t_->u_min();
+            bstar = u_min_;
         }
-        p.push_back(Piece{bstar, u, false});
-        S_.push_back(s_new);
-        Eb0_.push_back(0.0);
-        live_ = (*t_)(u, bstar);
+        nodes_.push_back(Node{Piece{bstar, u, false}, s_new, 0.0});
+        fix_ = bstar == cur_ ? cur_pos_ : t_->position(bstar);
+        cur_pos_ = t_->position(u);
+        live_ = t_->value(cur_pos_, fix_);
         rising_ = true;
         cur_ = u;
+        set_limits();
         update_output();
     }
 
     void fall(double u) {
-        auto& p = st_.mutable_pieces();
-        std::size_t k = p.size();
+        std::size_t k = nodes_.size();
+        bool same_piece = false;
         if (rising_) {  // the rising piece becomes a falling one with M = the last input
-            Eb0_[k - 1] = live_;
+            nodes_[k - 1].Eb0 = live_;
+            fix_ = cur_pos_;
             rising_ = false;
+            same_piece = true;
         }
         double old_end = cur_;
         double c_old = live_;
         bool popped = false;
-        while (k > 0 && p[k - 1].b0 >= u) {
-            old_end = p[k - 1].b0;
-            c_old = S_[k - 1];
-            pop();
+        while (k > 0 && nodes_[k - 1].p.b0 >= u) {
+            old_end = nodes_[k - 1].p.b0;
+            c_old = nodes_[k - 1].S;
+            nodes_.pop_back();
             --k;
             popped = true;
         }
         cur_ = u;
+        cur_pos_ = t_->position(u);
         if (k == 0) {
             live_ = 0.0;
+            set_limits();
             update_output();
             return;
         }
-        const Piece& last = p[k - 1];
-        if (last.antidiag) {
-            if (popped) c_old -= S_[k - 1];
-            live_ = c_old - t_->antidiagonal_integral(last.v, u, old_end);
+        const Node& last = nodes_[k - 1];
+        if (last.p.antidiag) {
+            if (popped) c_old -= last.S;
+            live_ = c_old - t_->antidiagonal_integral(last.p.v, u, old_end);
         } else {
-            live_ = Eb0_[k - 1] - (*t_)(last.v, u);
+            if (popped || !same_piece) fix_ = t_->position(last.p.v);
+            live_ = last.Eb0 - t_->value(fix_, cur_pos_);
         }
+        set_limits();
         update_output();
     }
 
     const EverettTable* t_;
-    State st_;
-    std::vector<double> S_;    // S_[k]: sum of the contributions of the pieces below k
-    std::vector<double> Eb0_;  // constant pieces: E(M, b0)
+    std::vector<Node> nodes_;  // the boundary pieces, lowest beta first, with cached sums
+    double u_min_ = 0.0, u_max_ = 0.0, y_min_ = 0.0;
+    GridPos cur_pos_{0, 0.0};  // grid position of the current input
+    GridPos fix_{0, 0.0};      // grid position of the last constant piece's fixed coordinate
+                               // (b0 while rising, M while falling)
     double live_ = 0.0;        // contribution of the last piece up to the current input
+    double s_last_ = 0.0;      // S of the last piece
+    double eb0_ = 0.0;         // E(M, b0) of the last piece while it falls
+    double lo_ = 0.0, hi_ = 0.0;  // fast-path limits (see set_limits)
     double cur_ = 0.0;         // current input
     double y_ = 0.0;           // current output
     bool rising_ = false;      // the last piece is the rising one (phi = current input)

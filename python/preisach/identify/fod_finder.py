@@ -1,0 +1,782 @@
+"""Find first-order descending (FOD) and first-order reversal (FORC) curves in a recording.
+
+The identification procedure of the thesis (section 2.6, Mayergoyz) needs the outputs
+``y(alpha, beta)`` (volts) of first-order descending curves: the input goes to negative
+saturation, rises monotonically to a turning value ``alpha`` and falls monotonically; the
+output read when the falling input passes ``beta`` is ``y(alpha, beta)``.  The identification
+input of the thesis (Fig 3.17, section 3.3.1) visits the 21 levels ``{-100 + 10 i}`` V: for every
+``alpha_i`` the input goes to -100 V, rises to ``alpha_i`` and falls back to -100 V.
+
+:func:`find_fod_curves` finds such curves in *any* recording ``(t, u, y)`` by themselves, and
+:func:`find_forc_curves` finds the mirror image: first-order reversal curves from positive
+saturation (fall to a reversal value ``beta``, then rise).
+
+Algorithm
+---------
+1. **Turning points** with a hysteresis threshold: the input counts as having turned only
+   when it reverses by more than ``reversal_tol`` volts from its running extreme (a "zig-zag"
+   filter).  Smaller wiggles (noise, dither) do not end a monotone leg.  The extreme of a leg is
+   its highest (lowest) sample; among equal samples the last one, so that a hold at a turning
+   value ends where the next leg starts.
+2. **Classification.**  Every turning point at the top of a leg (FOD; bottom for FORC) opens a
+   candidate curve whose branch runs to the next turning point (or the end of the recording).
+   It is a first-order curve when the leg before it starts at saturation: its lowest input is
+   within ``saturation_tol`` of ``u_min`` (FORC: highest within ``saturation_tol`` of ``u_max``).
+   Otherwise the curve is rejected with a reason ("did not start from negative saturation",
+   "non-monotone rise" when the input did visit saturation but reversed by more than
+   ``reversal_tol`` on its way up to this turning point, "too short" when the recording ends
+   within ``reversal_tol`` of the turning point).
+3. **Snapping.**  The turning value is snapped to the nearest grid level when it lies within
+   ``level_tol`` of it; a first-order curve that turns elsewhere is *not* put on the grid but
+   is kept as a raw curve (:attr:`FODData.raw_curves`) and reported.
+4. **Reading the levels.**  On the branch the output is read at every grid level below
+   ``alpha`` (FORC: above ``beta``) at the **first crossing**: the branch input is replaced by
+   its monotone envelope (running minimum of the falling input, running maximum of the rising
+   input) and the output is linearly interpolated between the last sample before and the first
+   sample at or past the level.  Dither that moves the input back within ``reversal_tol`` after
+   a crossing therefore never produces a second reading.  A level that the branch does not
+   cross but whose end comes within ``level_tol`` of it (e.g. the saturation level of a sweep
+   that turns exactly there) is read at the branch's extreme sample.  Levels the branch does
+   not reach stay NaN (curves that stop early).  The diagonal node ``(i, i)`` is the output at
+   the turning-point sample itself.
+5. **Averaging.**  Repeated curves are averaged per node; ``count`` holds the number of
+   readings and ``spread`` their sample standard deviation (``ddof = 1``, NaN for ``count < 2``).
+
+Grid conventions
+----------------
+``levels`` is ascending (volts).  In both directions ``y_grid[i, j]`` with ``j <= i`` is the
+output at the Preisach-plane point ``(alpha, beta) = (levels[i], levels[j])``; the upper
+triangle ``j > i`` is always NaN.
+
+* FOD (``direction == "descending"``): row ``i`` is the descending curve that turned at
+  ``alpha = levels[i]``; ``y_grid[i, j]`` is read when the falling input passes
+  ``beta = levels[j]``; ``y_grid[i, i]`` is the output at the turning point.  Node ``(0, 0)``
+  (``alpha = beta = u_min``, a degenerate curve) is the output at the visits to negative
+  saturation that start the used curves, so its ``count`` is the number of those visits.
+* FORC (``direction == "ascending"``): column ``j`` is the reversal curve that reversed at
+  ``beta = levels[j]``; ``y_grid[i, j]`` is read when the rising input passes
+  ``alpha = levels[i]``; ``y_grid[j, j]`` is the output at the reversal point.  Node
+  ``(n-1, n-1)`` is the output at the visits to positive saturation that start the used curves.
+
+Both grids are therefore indexed the same way: ``i`` is the larger input ``alpha``, ``j`` the
+smaller ``beta``, and a curve is a row (FOD) or a column (FORC).  The two are not the same
+function: FOD data of a Preisach model are the ``y(alpha, beta)`` of the thesis, FORC data are
+``y_max - 2 E(u_max, beta) + 2 E(alpha, beta)`` with the Everett function
+``E(alpha, beta) = (y(alpha, alpha) - y(alpha, beta)) / 2`` of the FOD surface.
+
+Levels
+------
+With ``levels=None`` the grid is inferred: the turning values of the first-order curves and
+the input at the saturation visits that start them are clustered (values closer than
+``level_tol`` form one cluster); when there are at least three clusters and they all lie within
+``level_tol`` of a regular grid ``a + k h`` (least-squares fit), that grid is used, extended
+over the recording's input range.  Its offset and step are rounded to the coarsest of about
+``h / 10``, ``h / 100``, ``h / 1000`` that still fits within ``level_tol / 2``, so the thesis
+grid comes out as exactly ``-100 + 10 i`` even from dithered data.  Otherwise 21 equally spaced
+levels over ``[u_min, u_max]`` are used; turning points are then usually off the grid and the
+curves are only available as raw curves (:attr:`FODData.raw_curves`).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["CurveRecord", "FODData", "find_fod_curves", "find_forc_curves"]
+
+#: Number of levels used when no regular grid can be inferred from the turning values.
+DEFAULT_N_LEVELS = 21
+
+
+# ------------------------------------------------------------------------------------------
+# result types
+# ------------------------------------------------------------------------------------------
+@dataclass
+class CurveRecord:
+    """One candidate curve found in a recording.
+
+    Attributes
+    ----------
+    index : int
+        Ordinal of the candidate in the recording (0, 1, ...).
+    start : int
+        Sample index where the curve's history starts: the turning point at saturation before
+        the first leg (or the start of the first leg / of the recording when rejected).
+    turn : int
+        Sample index of the turning point (the top of an FOD, the bottom of a FORC).
+    stop : int
+        Last sample index (inclusive) of the branch after the turning point.
+    t_start, t_turn, t_stop : float
+        Times (s) of ``start``, ``turn`` and ``stop``.
+    turning_value : float
+        Input at the turning point (V): ``alpha`` of an FOD, the reversal ``beta`` of a FORC.
+    level : int or None
+        Index into :attr:`FODData.levels` the turning value was snapped to, ``None`` when the
+        curve is not on the grid (or not a first-order curve).
+    first_order : bool
+        ``True`` when the curve is a genuine first-order curve (start at saturation, monotone
+        first leg, a branch after the turning point), on the grid or not.
+    used : bool
+        ``True`` when the curve contributed to :attr:`FODData.y_grid`.
+    reason : str
+        Why the curve was used or rejected, in words.
+    n_nodes : int
+        Number of grid nodes the curve contributed (including its diagonal node).
+    u, y : ndarray
+        Input (V) and output (V) samples of the branch, ``turn .. stop`` inclusive (raw, not
+        the monotone envelope).
+    direction : str
+        ``"descending"`` (FOD) or ``"ascending"`` (FORC).
+    """
+
+    index: int
+    start: int
+    turn: int
+    stop: int
+    t_start: float
+    t_turn: float
+    t_stop: float
+    turning_value: float
+    level: Optional[int]
+    first_order: bool
+    used: bool
+    reason: str
+    n_nodes: int
+    u: NDArray[np.float64]
+    y: NDArray[np.float64]
+    direction: str
+
+    @property
+    def alpha(self) -> float:
+        """Turning value ``alpha`` (V) of an FOD curve; NaN for a FORC (alpha varies)."""
+        return self.turning_value if self.direction == "descending" else math.nan
+
+    @property
+    def beta(self) -> float:
+        """Reversal value ``beta`` (V) of a FORC; NaN for an FOD curve (beta varies)."""
+        return self.turning_value if self.direction == "ascending" else math.nan
+
+
+@dataclass
+class FODData:
+    """First-order curve data found in a recording.
+
+    Attributes
+    ----------
+    levels : ndarray, shape (n,)
+        Ascending input levels (V).
+    y_grid : ndarray, shape (n, n)
+        Mean output (V); ``y_grid[i, j] = y(alpha=levels[i], beta=levels[j])`` for ``j <= i``,
+        NaN where not measured and in the upper triangle.  A FOD curve is a row, a FORC a
+        column; see the module docstring for the two conventions.
+    count : ndarray of int, shape (n, n)
+        Number of readings averaged per node (0 where not measured).
+    spread : ndarray, shape (n, n)
+        Sample standard deviation (V, ``ddof = 1``) of the readings per node; NaN where
+        ``count < 2``.
+    curves : list of CurveRecord
+        Every candidate curve, used or not, in the order of the recording.
+    direction : str
+        ``"descending"`` (FOD, :func:`find_fod_curves`) or ``"ascending"`` (FORC,
+        :func:`find_forc_curves`).
+    u_min, u_max : float
+        Input range (V) taken as negative and positive saturation.
+    saturation_tol, reversal_tol, level_tol : float
+        Tolerances (V) actually used.
+    levels_source : str
+        How ``levels`` were obtained ("given", "regular grid inferred ...", "fallback ...").
+    n_samples : int
+        Number of samples in the recording.
+    """
+
+    levels: NDArray[np.float64]
+    y_grid: NDArray[np.float64]
+    count: NDArray[np.int64]
+    spread: NDArray[np.float64]
+    curves: list[CurveRecord]
+    direction: str
+    u_min: float
+    u_max: float
+    saturation_tol: float
+    reversal_tol: float
+    level_tol: float
+    levels_source: str
+    n_samples: int
+
+    @property
+    def used_curves(self) -> list[CurveRecord]:
+        """Curves that contributed to the grid."""
+        return [c for c in self.curves if c.used]
+
+    @property
+    def rejected_curves(self) -> list[CurveRecord]:
+        """Curves that did not contribute to the grid (with their ``reason``)."""
+        return [c for c in self.curves if not c.used]
+
+    @property
+    def raw_curves(self) -> list[tuple[float, NDArray[np.float64], NDArray[np.float64]]]:
+        """Every first-order curve as ``(turning value, u along branch, y along branch)``.
+
+        All in volts.  For FOD data this is ``(alpha, beta samples, y samples)``, for FORC data
+        ``(beta, alpha samples, y samples)``.  Includes curves whose turning value is not on
+        the grid; the samples are raw (noise and dither included).
+        """
+        return [(c.turning_value, c.u, c.y) for c in self.curves if c.first_order]
+
+    def nodes(
+        self,
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:
+        """Measured nodes as flat arrays ``(alpha, beta, y, count)`` (V, V, V, 1)."""
+        i, j = np.nonzero(self.count > 0)
+        return self.levels[i], self.levels[j], self.y_grid[i, j], self.count[i, j]
+
+    def report(self) -> str:
+        """Readable multi-line summary: settings, grid coverage and one line per curve."""
+        n = self.levels.size
+        fod = self.direction == "descending"
+        kind = "FOD (first-order descending)" if fod else "FORC (first-order reversal)"
+        sat = "negative" if fod else "positive"
+        sat_line = (
+            f"u <= {_v(self.u_min + self.saturation_tol)}" if fod
+            else f"u >= {_v(self.u_max - self.saturation_tol)}"
+        )
+        n_nodes = n * (n + 1) // 2
+        measured = int(np.count_nonzero(self.count))
+        repeated = int(np.count_nonzero(self.count >= 2))
+        finite_spread = self.spread[np.isfinite(self.spread)]
+        spread_txt = _v(float(finite_spread.max())) if finite_spread.size else "n/a"
+        spacing = np.diff(self.levels)
+        spacing_txt = (
+            f"step {_v(float(spacing[0]))}" if np.allclose(spacing, spacing[0]) else "irregular"
+        )
+        used = self.used_curves
+        off_grid = [c for c in self.curves if c.first_order and not c.used]
+        lines = [
+            f"{kind} curves in a recording of {self.n_samples} samples",
+            f"  input range {_v(self.u_min)} .. {_v(self.u_max)}; {sat} saturation: {sat_line}",
+            f"  tolerances: saturation {_v(self.saturation_tol)}, reversal "
+            f"{_v(self.reversal_tol)}, level {_v(self.level_tol)}",
+            f"  levels: {n} from {_v(float(self.levels[0]))} to {_v(float(self.levels[-1]))}, "
+            f"{spacing_txt} ({self.levels_source})",
+            f"  nodes measured: {measured} of {n_nodes}; repeated (count >= 2): {repeated}; "
+            f"max spread: {spread_txt}",
+            f"  curves: {len(self.curves)} found, {len(used)} used, "
+            f"{len(self.curves) - len(used)} rejected ({len(off_grid)} of them first-order "
+            "but off the grid, kept as raw curves)",
+        ]
+        if self.curves:
+            lines.append(f"  {'#':>4}  {'t [s]':>21}  {'turn [V]':>10}  {'level':>5}  "
+                         f"{'nodes':>5}  status")
+        for c in self.curves:
+            lvl = "-" if c.level is None else str(c.level)
+            status = "used" if c.used else "rejected"
+            lines.append(
+                f"  {c.index:>4}  {c.t_start:>9.4g} .. {c.t_stop:<9.4g}  "
+                f"{c.turning_value:>10.5g}  {lvl:>5}  {c.n_nodes:>5}  {status}: {c.reason}"
+            )
+        return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------------
+# public functions
+# ------------------------------------------------------------------------------------------
+def find_fod_curves(
+    t: Any,
+    u: Optional[ArrayLike] = None,
+    y: Optional[ArrayLike] = None,
+    levels: Optional[ArrayLike] = None,
+    *,
+    u_min: Optional[float] = None,
+    u_max: Optional[float] = None,
+    saturation_tol: Optional[float] = None,
+    reversal_tol: Optional[float] = None,
+    level_tol: Optional[float] = None,
+) -> FODData:
+    """Find the first-order descending (FOD) curves in a recording and grid their outputs.
+
+    Parameters
+    ----------
+    t : array_like or recording
+        Sample times (s), or an object with attributes ``t``, ``u`` and ``y`` (e.g.
+        ``preisach.recording.Recording``); then ``u`` and ``y`` must not be given.
+    u, y : array_like
+        Input (V) and output (V) samples, same length as ``t``.
+    levels : array_like, optional
+        Ascending grid of input levels (V).  ``None``: inferred (see module docstring): the
+        regular grid of the turning values when there is one, else 21 equally spaced levels
+        over ``[u_min, u_max]``.
+    u_min, u_max : float, optional
+        Negative and positive saturation (V); default: the recording's input range.
+    saturation_tol : float, optional
+        A leg starts at negative saturation when its lowest input is ``<= u_min +
+        saturation_tol`` (V).  Default: 1 % of ``u_max - u_min``.
+    reversal_tol : float, optional
+        The input must reverse by more than this (V) for a turning point (hysteresis of the
+        turning-point detector).  Default: 0.5 % of ``u_max - u_min``.
+    level_tol : float, optional
+        A turning value (or the end of a branch) within this distance (V) of a grid level is
+        snapped to it; must be below half the smallest level spacing.  Default: the smaller of
+        0.5 % of ``u_max - u_min`` and a quarter of the smallest level spacing.
+
+    Returns
+    -------
+    FODData
+        ``y_grid[i, j] = y(alpha=levels[i], beta=levels[j])`` (V) for ``j <= i``, with counts,
+        spreads and a record of every candidate curve (``direction == "descending"``).
+
+    Raises
+    ------
+    ValueError
+        On arrays of different lengths, fewer than 2 samples, non-finite values, decreasing
+        ``t``, bad levels or tolerances; the message names the argument.
+    """
+    return _find(t, u, y, levels, +1.0, u_min, u_max, saturation_tol, reversal_tol, level_tol)
+
+
+def find_forc_curves(
+    t: Any,
+    u: Optional[ArrayLike] = None,
+    y: Optional[ArrayLike] = None,
+    levels: Optional[ArrayLike] = None,
+    *,
+    u_min: Optional[float] = None,
+    u_max: Optional[float] = None,
+    saturation_tol: Optional[float] = None,
+    reversal_tol: Optional[float] = None,
+    level_tol: Optional[float] = None,
+) -> FODData:
+    """Find the first-order reversal curves (FORC) from positive saturation in a recording.
+
+    The mirror image of :func:`find_fod_curves`: a visit to positive saturation (input
+    ``>= u_max - saturation_tol``), a monotone fall to a reversal value ``beta``, a monotone
+    rise; the output is read when the rising input passes the levels ``alpha > beta``.
+
+    Parameters
+    ----------
+    t, u, y, levels, u_min, u_max, saturation_tol, reversal_tol, level_tol
+        As for :func:`find_fod_curves`, with the roles of the saturations mirrored.
+
+    Returns
+    -------
+    FODData
+        ``direction == "ascending"``; ``y_grid[i, j]`` (V) is the output at input
+        ``alpha = levels[i]`` on the rising branch after the reversal at ``beta = levels[j]``
+        (``j <= i``); a curve is a column, ``y_grid[j, j]`` the output at the reversal and
+        ``y_grid[n-1, n-1]`` the output at positive saturation.
+
+    Raises
+    ------
+    ValueError
+        As for :func:`find_fod_curves`.
+    """
+    return _find(t, u, y, levels, -1.0, u_min, u_max, saturation_tol, reversal_tol, level_tol)
+
+
+# ------------------------------------------------------------------------------------------
+# implementation
+# ------------------------------------------------------------------------------------------
+def _v(x: float) -> str:
+    """Format a voltage."""
+    if x == 0.0:
+        x = 0.0  # no "-0"
+    return f"{x:.6g} V"
+
+
+@dataclass(frozen=True)
+class _Frame:
+    """Wording and sign of the working frame ``s = sign * u`` (FOD frame: sign = +1)."""
+
+    sign: float
+
+    @property
+    def fod(self) -> bool:
+        return self.sign > 0
+
+    @property
+    def sat(self) -> str:
+        return "negative saturation" if self.fod else "positive saturation"
+
+    @property
+    def first_leg(self) -> str:
+        return "rise" if self.fod else "fall"
+
+    @property
+    def branch(self) -> str:
+        return "falling branch" if self.fod else "rising branch"
+
+    @property
+    def turn_name(self) -> str:
+        return "turning value" if self.fod else "reversal value"
+
+    @property
+    def bound(self) -> str:
+        return "u_min" if self.fod else "u_max"
+
+    def v(self, s: float) -> str:
+        """Format a working-frame value in the user's volts."""
+        return _v(self.sign * float(s))
+
+
+def _as_1d(name: str, a: Any) -> NDArray[np.float64]:
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a 1-D array of numbers: {exc}") from None
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be 1-D, got shape {arr.shape}")
+    return arr
+
+
+def _validate(
+    t: Any, u: Any, y: Any
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    if all(hasattr(t, name) for name in ("t", "u", "y")) and not isinstance(t, np.ndarray):
+        if u is not None or y is not None:
+            raise TypeError(
+                "u and y must not be given when the first argument is a recording with "
+                "attributes t, u, y (pass levels by keyword)"
+            )
+        t, u, y = t.t, t.u, t.y
+    elif u is None or y is None:
+        raise TypeError("give t, u and y arrays, or a recording with attributes t, u, y")
+    ta, ua, ya = _as_1d("t", t), _as_1d("u", u), _as_1d("y", y)
+    if not (ta.size == ua.size == ya.size):
+        raise ValueError(
+            f"t, u and y must have the same length, got t: {ta.size}, u: {ua.size}, y: {ya.size}"
+        )
+    if ta.size < 2:
+        raise ValueError(f"t, u and y need at least 2 samples, got {ta.size}")
+    for name, arr in (("t", ta), ("u", ua), ("y", ya)):
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise ValueError(f"{name} contains NaN or infinite values (first at sample {k})")
+    if np.any(np.diff(ta) < 0):
+        k = int(np.argmax(np.diff(ta) < 0))
+        raise ValueError(f"t must be non-decreasing (t[{k + 1}] < t[{k}])")
+    return ta, ua, ya
+
+
+def _tol(name: str, value: Optional[float], default: float, allow_zero: bool) -> float:
+    if value is None:
+        return default
+    v = float(value)
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        need = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{name} must be finite and {need}, got {value!r}")
+    return v
+
+
+def _turning_points(s: NDArray[np.float64], tol: float) -> tuple[list[int], list[int], int]:
+    """Zig-zag turning points of ``s`` with hysteresis ``tol``.
+
+    Returns ``(idx, kind, n_confirmed)``: sample indices and kinds (+1 top, -1 bottom),
+    alternating; the first ``n_confirmed`` entries are confirmed turning points, the last one
+    (if any beyond) is the pending extreme of the leg the recording ends in.
+    """
+    n = s.size
+    d = np.diff(s)
+    left, right = d[:-1], d[1:]
+    mid = np.nonzero(((left >= 0) & (right <= 0)) | ((left <= 0) & (right >= 0)))[0] + 1
+    cand = np.concatenate(([0], mid, [n - 1])).tolist()
+    vals = s[cand].tolist()
+    idx: list[int] = []
+    kind: list[int] = []
+    direction = 0
+    hi = lo = ext = 0  # positions into cand / vals
+    for p in range(1, len(vals)):
+        v = vals[p]
+        if direction > 0:
+            if v >= vals[ext]:
+                ext = p
+            elif vals[ext] - v > tol:
+                idx.append(cand[ext])
+                kind.append(+1)
+                direction, ext = -1, p
+        elif direction < 0:
+            if v <= vals[ext]:
+                ext = p
+            elif v - vals[ext] > tol:
+                idx.append(cand[ext])
+                kind.append(-1)
+                direction, ext = +1, p
+        else:
+            if v >= vals[hi]:
+                hi = p
+            if v <= vals[lo]:
+                lo = p
+            if v - vals[lo] > tol:
+                idx.append(cand[lo])
+                kind.append(-1)
+                direction, ext = +1, p
+            elif vals[hi] - v > tol:
+                idx.append(cand[hi])
+                kind.append(+1)
+                direction, ext = -1, p
+    n_confirmed = len(idx)
+    if direction != 0:
+        idx.append(cand[ext])
+        kind.append(direction)
+    return idx, kind, n_confirmed
+
+
+@dataclass
+class _Candidate:
+    start: int
+    turn: int
+    stop: int
+    first_order: bool
+    reason: str
+
+
+def _classify(
+    s: NDArray[np.float64], t: NDArray[np.float64], idx: list[int], kind: list[int],
+    n_confirmed: int, sat_level: float, rev_tol: float, fr: _Frame,
+) -> list[_Candidate]:
+    """Candidate curves (one per top turning point) with first-order status and reason."""
+    n = s.size
+    # positions (into idx) of bottoms at saturation
+    sat_pos = [m for m, (k, kd) in enumerate(zip(idx, kind)) if kd < 0 and s[k] <= sat_level]
+    out: list[_Candidate] = []
+    for m, (k, kd) in enumerate(zip(idx, kind)):
+        if kd < 0:
+            continue
+        if m >= n_confirmed:  # the recording ends before the input turned back
+            start = idx[m - 1] if m > 0 else 0
+            out.append(_Candidate(
+                start, k, n - 1, False,
+                f"too short: the recording ends within reversal_tol = {_v(rev_tol)} of the "
+                f"{fr.turn_name} {fr.v(s[k])} (no {fr.branch})",
+            ))
+            continue
+        stop = idx[m + 1]
+        if m == 0:
+            out.append(_Candidate(
+                0, k, stop, False,
+                f"did not start from {fr.sat}: the recording begins at {fr.v(s[0])} "
+                f"(t = {t[0]:.6g} s), at or before the {fr.turn_name} {fr.v(s[k])}, with no "
+                f"visit to {fr.sat}",
+            ))
+            continue
+        valley = idx[m - 1]
+        if s[valley] <= sat_level:
+            out.append(_Candidate(valley, k, stop, True, ""))
+            continue
+        q = bisect.bisect_left(sat_pos, m) - 1
+        p_sat = sat_pos[q] if q >= 0 else -1
+        # a non-monotone first leg: saturation, then a leg towards this turning point with
+        # reversals that all stay below it
+        if p_sat >= 0 and max(s[idx[p]] for p in range(p_sat + 1, m, 2)) < s[k]:
+            rev, back = idx[p_sat + 1], idx[p_sat + 2]
+            out.append(_Candidate(
+                valley, k, stop, False,
+                f"non-monotone {fr.first_leg}: after {fr.sat} at t = {t[idx[p_sat]]:.6g} s the "
+                f"input reversed at {fr.v(s[rev])} (t = {t[rev]:.6g} s) back to "
+                f"{fr.v(s[back])} before reaching the {fr.turn_name} {fr.v(s[k])}",
+            ))
+        else:
+            out.append(_Candidate(
+                valley, k, stop, False,
+                f"did not start from {fr.sat}: the {fr.first_leg} began at {fr.v(s[valley])} "
+                f"(t = {t[valley]:.6g} s), not within saturation_tol of {fr.bound}",
+            ))
+    return out
+
+
+def _infer_levels(
+    values: NDArray[np.float64], s_min: float, s_max: float, level_tol: float,
+) -> Optional[NDArray[np.float64]]:
+    """Regular grid through the clustered ``values`` (working frame), or None."""
+    if values.size < 3:
+        return None
+    v = np.sort(values)
+    cut = np.nonzero(np.diff(v) > level_tol)[0] + 1
+    centres = np.array([np.median(c) for c in np.split(v, cut)])
+    if centres.size < 3:
+        return None
+    a, h = float(centres[0]), float(np.min(np.diff(centres)))
+    for _ in range(3):  # integer grid positions, then a least-squares fit of a + k h; refine
+        k = np.round((centres - a) / h)
+        A = np.column_stack((np.ones_like(k), k))
+        (a, h), *_ = np.linalg.lstsq(A, centres, rcond=None)
+        a, h = float(a), float(h)
+        if not h > 2.0 * level_tol:
+            return None
+    k = np.round((centres - a) / h)
+    if np.max(np.abs(centres - (a + k * h))) > level_tol:
+        return None
+    e_top = int(math.floor(math.log10(h))) - 1
+    for dec in range(-e_top, -e_top + 3):  # round to h/10 .. h/1000, coarsest that still fits
+        a_r, h_r = float(np.round(a, dec)), float(np.round(h, dec))
+        if h_r > 0 and np.max(np.abs(centres - (a_r + k * h_r))) <= 0.5 * level_tol:
+            a, h = a_r, h_r
+            break
+    k_lo = min(int(k.min()), int(math.ceil((s_min - level_tol - a) / h)))
+    k_hi = max(int(k.max()), int(math.floor((s_max + level_tol - a) / h)))
+    return a + h * np.arange(k_lo, k_hi + 1, dtype=float)
+
+
+def _read_branch(
+    bs: NDArray[np.float64], by: NDArray[np.float64], lv: NDArray[np.float64], level_tol: float,
+) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """Read a falling branch (working frame) at the ascending levels ``lv`` (all below the top).
+
+    Returns the indices into ``lv`` that were reached and the outputs read there.
+    """
+    env = np.minimum.accumulate(bs)             # monotone (non-increasing) envelope
+    pos = np.searchsorted(-env, -lv, side="left")  # first sample with env <= level
+    reached = pos < bs.size
+    jr = np.nonzero(reached)[0]
+    k1 = pos[jr]
+    k0 = np.maximum(k1 - 1, 0)
+    u0, u1 = bs[k0], bs[k1]
+    denom = u0 - u1
+    w = np.divide(u0 - lv[jr], denom, out=np.zeros_like(denom), where=denom > 0)
+    vals = by[k0] + w * (by[k1] - by[k0])
+    # end snap: the highest level not crossed, if the branch ends within level_tol of it
+    miss = np.nonzero(~reached)[0]
+    if miss.size:
+        jm = int(miss[-1])
+        if env[-1] - lv[jm] <= level_tol:
+            jr = np.append(jr, jm)
+            k_end = bs.size - 1 - int(np.argmin(bs[::-1]))  # last sample at the branch's extreme
+            vals = np.append(vals, by[k_end])
+    return jr, vals
+
+
+def _find(
+    t: Any, u: Any, y: Any, levels: Optional[ArrayLike], sign: float,
+    u_min: Optional[float], u_max: Optional[float], saturation_tol: Optional[float],
+    reversal_tol: Optional[float], level_tol: Optional[float],
+) -> FODData:
+    ta, ua, ya = _validate(t, u, y)
+    fr = _Frame(sign)
+    lo = float(ua.min()) if u_min is None else float(u_min)
+    hi = float(ua.max()) if u_max is None else float(u_max)
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError("u_min and u_max must be finite")
+    if not hi > lo:
+        raise ValueError(
+            f"u_max ({hi}) must exceed u_min ({lo}); u must not be constant"
+        )
+    span = hi - lo
+    sat_tol = _tol("saturation_tol", saturation_tol, 0.01 * span, allow_zero=True)
+    rev_tol = _tol("reversal_tol", reversal_tol, 0.005 * span, allow_zero=False)
+    lvl_tol_user = level_tol is not None
+    lvl_tol = _tol("level_tol", level_tol, 0.005 * span, allow_zero=True)
+
+    # working frame: FOD curves descend from a top turning point after negative saturation
+    s = sign * ua
+    s_min, s_max = (lo, hi) if sign > 0 else (-hi, -lo)
+    sat_level = s_min + sat_tol
+
+    idx, kind, n_conf = _turning_points(s, rev_tol)
+    cands = _classify(s, ta, idx, kind, n_conf, sat_level, rev_tol, fr)
+
+    # ---- levels (working frame, ascending) ----
+    if levels is not None:
+        lv_user = _as_1d("levels", levels)
+        if lv_user.size < 2:
+            raise ValueError(f"levels needs at least 2 entries, got {lv_user.size}")
+        if not np.all(np.isfinite(lv_user)):
+            raise ValueError("levels contains NaN or infinite values")
+        if np.any(np.diff(lv_user) <= 0):
+            raise ValueError("levels must be strictly increasing")
+        lv = lv_user.copy() if sign > 0 else -lv_user[::-1]
+        source = "given"
+    else:
+        firsts = [c for c in cands if c.first_order]
+        vals = np.array([s[c.turn] for c in firsts] + [s[c.start] for c in firsts], dtype=float)
+        inferred = _infer_levels(vals, s_min, s_max, lvl_tol)
+        if inferred is not None:
+            lv = inferred
+            source = f"regular grid inferred from {len(firsts)} first-order curves"
+        else:
+            grid = np.linspace(lo, hi, DEFAULT_N_LEVELS)
+            lv = grid if sign > 0 else -grid[::-1]
+            source = (f"fallback: {DEFAULT_N_LEVELS} equally spaced levels over the input "
+                      "range; the turning values are not on a regular grid")
+    min_step = float(np.min(np.diff(lv)))
+    if lvl_tol_user:
+        if lvl_tol >= 0.5 * min_step:
+            raise ValueError(
+                f"level_tol ({lvl_tol}) must be smaller than half the smallest level spacing "
+                f"({0.5 * min_step})"
+            )
+    else:
+        lvl_tol = min(lvl_tol, 0.25 * min_step)
+    n = lv.size
+
+    # ---- read the curves ----
+    flat: list[NDArray[np.intp]] = []
+    obs: list[NDArray[np.float64]] = []
+    records: list[CurveRecord] = []
+    for c_no, c in enumerate(cands):
+        k, stop = c.turn, c.stop
+        bs, by = s[k:stop + 1], ya[k:stop + 1]
+        level: Optional[int] = None
+        used = False
+        n_nodes = 0
+        reason = c.reason
+        if c.first_order:
+            i = int(np.argmin(np.abs(lv - s[k])))
+            if abs(lv[i] - s[k]) > lvl_tol:
+                reason = (f"{fr.turn_name} {fr.v(s[k])} not on the grid (nearest level "
+                          f"{fr.v(lv[i])}, level_tol = {_v(lvl_tol)}); kept as a raw curve")
+            else:
+                level, used = i, True
+                jr, vals = _read_branch(bs, by, lv[:i], lvl_tol)
+                rows = np.concatenate((jr * 0 + i, [i]))
+                cols = np.concatenate((jr, [i]))
+                flat.append(rows * n + cols)
+                obs.append(np.concatenate((vals, [by[0]])))
+                n_nodes = cols.size
+                if abs(s[c.start] - lv[0]) <= lvl_tol:  # saturation visit: node (0, 0)
+                    flat.append(np.array([0], dtype=np.intp))
+                    obs.append(np.array([ya[c.start]]))
+                reason = f"ok, {n_nodes} nodes"
+                if i > 0 and (jr.size == 0 or jr.min() > 0):
+                    reason += (f"; stops early at {fr.v(float(bs.min()))}, levels beyond not "
+                               "reached")
+        records.append(CurveRecord(
+            index=c_no, start=c.start, turn=k, stop=stop,
+            t_start=float(ta[c.start]), t_turn=float(ta[k]), t_stop=float(ta[stop]),
+            turning_value=float(ua[k]), level=level, first_order=c.first_order, used=used,
+            reason=reason, n_nodes=n_nodes, u=ua[k:stop + 1].copy(), y=by.copy(),
+            direction="descending" if sign > 0 else "ascending",
+        ))
+
+    # ---- average per node ----
+    if flat:
+        fi = np.concatenate(flat).astype(np.intp)
+        fv = np.concatenate(obs)
+    else:
+        fi = np.zeros(0, dtype=np.intp)
+        fv = np.zeros(0)
+    cnt = np.bincount(fi, minlength=n * n)
+    tot = np.bincount(fi, weights=fv, minlength=n * n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(cnt > 0, tot / np.maximum(cnt, 1), np.nan)
+        ss = np.bincount(fi, weights=(fv - mean[fi]) ** 2, minlength=n * n)
+        std = np.where(cnt >= 2, np.sqrt(ss / np.maximum(cnt - 1, 1)), np.nan)
+    mean, cnt, std = mean.reshape(n, n), cnt.reshape(n, n).astype(np.int64), std.reshape(n, n)
+
+    if sign > 0:
+        levels_out = lv
+    else:  # back from the mirrored frame: Y[i, j] = Y'[n-1-j, n-1-i]
+        levels_out = -lv[::-1] + 0.0  # + 0.0: no -0.0 levels
+        mean, cnt, std = (a[::-1, ::-1].T.copy() for a in (mean, cnt, std))
+        for r in records:
+            if r.level is not None:
+                r.level = n - 1 - r.level
+    return FODData(
+        levels=levels_out, y_grid=mean, count=cnt, spread=std, curves=records,
+        direction="descending" if sign > 0 else "ascending", u_min=lo, u_max=hi,
+        saturation_tol=sat_tol, reversal_tol=rev_tol, level_tol=lvl_tol,
+        levels_source=source, n_samples=int(ta.size),
+    )
