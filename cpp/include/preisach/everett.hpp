@@ -67,6 +67,19 @@ public:
         // half-cell, E = e (fa - fb), so every cell is interpolated without a branch.
         for (std::size_t i = 0; i < n; ++i)
             for (std::size_t j = i + 1; j < n; ++j) table_[i * n + j] = -table_[j * n + i];
+        // Per-cell bilinear coefficients, one contiguous block of 4 per cell:
+        // E = c0 + c1 fa + c2 fb + c3 fa fb on cell (i, j) (alpha cell i, beta cell j).
+        coef_.assign((n - 1) * (n - 1) * 4, 0.0);
+        for (std::size_t i = 0; i + 1 < n; ++i)
+            for (std::size_t j = 0; j + 1 < n; ++j) {
+                const double e00 = table_[i * n + j], e01 = table_[i * n + j + 1];
+                const double e10 = table_[(i + 1) * n + j], e11 = table_[(i + 1) * n + j + 1];
+                double* c = &coef_[(i * (n - 1) + j) * 4];
+                c[0] = e00;
+                c[1] = e10 - e00;
+                c[2] = e01 - e00;
+                c[3] = e11 - e10 - e01 + e00;
+            }
         u_min_ = levels_.front();
         u_max_ = levels_.back();
         const double h = (u_max_ - u_min_) / double(n - 1);
@@ -129,11 +142,8 @@ public:
     // E at (alpha, beta), alpha >= beta, from located positions: bilinear in the cell
     // (linear in the half-cell on the diagonal, through the antisymmetric extension).
     double value(GridPos a, GridPos b) const noexcept {
-        const std::size_t n = size();
-        const double* r0 = &table_[a.i * n];
-        const double* r1 = r0 + n;
-        const double e00 = r0[b.i], e01 = r0[b.i + 1], e10 = r1[b.i], e11 = r1[b.i + 1];
-        return (e00 + (e10 - e00) * a.f) * (1.0 - b.f) + (e01 + (e11 - e01) * a.f) * b.f;
+        const double* c = &coef_[(a.i * (size() - 1) + b.i) * 4];
+        return c[0] + c[1] * a.f + (c[2] + c[3] * a.f) * b.f;
     }
 
     double operator()(double alpha, double beta) const noexcept {
@@ -212,6 +222,7 @@ private:
 
     std::vector<double> levels_;
     std::vector<double> table_;
+    std::vector<double> coef_;
     std::vector<double> inv_width_;
     double y_min_ = 0.0;
     double u_min_ = 0.0, u_max_ = 0.0;

@@ -76,16 +76,33 @@ public:
     double step(double u) {
         if (u == cur_) return y_;
         const bool up = u > cur_;
-        // Continuing along the current branch without wiping out anything is the common
-        // case; it is done without branching on the direction.
-        if (up == rising_ && (up ? u < hi_ : u > lo_)) {
+        // Inside (lo_, hi_) nothing is wiped out and no antidiagonal piece is cut: the last
+        // piece is a constant one starting at lo_, and hi_ is where a rise would meet the
+        // boundary above.  Continuing the branch or reversing only touches the last piece.
+        if (u > lo_ && u < hi_) {
             const GridPos pu = t_->position(u);
-            const GridPos a{up ? pu.i : fix_.i, up ? pu.f : fix_.f};
-            const GridPos b{up ? fix_.i : pu.i, up ? fix_.f : pu.f};
-            const double v = t_->value(a, b);
-            live_ = up ? v : eb0_ - v;
-            double& m = nodes_.back().p.v;  // the rising piece follows the input
-            m = up ? u : m;
+            if (up == rising_) {  // continue along the branch, without a branch on direction
+                const GridPos a{up ? pu.i : fix_.i, up ? pu.f : fix_.f};
+                const GridPos b{up ? fix_.i : pu.i, up ? fix_.f : pu.f};
+                const double v = t_->value(a, b);
+                live_ = up ? v : eb0_ - v;
+                double& m = nodes_.back().p.v;  // the rising piece follows the input
+                m = up ? u : m;
+            } else if (up) {  // reversal at a minimum: push a rising piece from cur_
+                s_last_ += live_;
+                nodes_.push_back(Node{Piece{cur_, u, false}, s_last_, 0.0});
+                lo_ = cur_;
+                fix_ = cur_pos_;
+                live_ = t_->value(pu, fix_);
+                rising_ = true;
+            } else {  // reversal at a maximum: the rising piece becomes a falling one
+                Node& last = nodes_.back();
+                last.Eb0 = eb0_ = live_;
+                hi_ = cur_;
+                fix_ = cur_pos_;
+                live_ = eb0_ - t_->value(fix_, pu);
+                rising_ = false;
+            }
             cur_ = u;
             cur_pos_ = pu;
             update_output();
@@ -151,20 +168,25 @@ private:
 
     void update_output() noexcept { y_ = y_min_ + 2.0 * (s_last_ + live_); }
 
-    // Thresholds of the fast path after the last piece changed: rising, the input may go up
-    // to hi_ (where the piece below is met); falling, down to lo_ (the start of the piece).
+    // Limits of the fast path after the last piece changed (see step()): lo_ is the start
+    // of a constant last piece; hi_ the value of phi just above the last piece (rising) or
+    // the last piece's M (falling).  An antidiagonal or missing last piece disables it.
     void set_limits() noexcept {
         const std::size_t k = nodes_.size();
         s_last_ = k ? nodes_[k - 1].S : 0.0;
         const double inf = std::numeric_limits<double>::infinity();
-        if (rising_) {
-            hi_ = k >= 2 ? nodes_[k - 2].p.phi(nodes_[k - 1].p.b0) : inf;
+        if (k == 0 || nodes_[k - 1].p.antidiag) {
             lo_ = inf;
-        } else {
-            const bool constant = k > 0 && !nodes_[k - 1].p.antidiag;
-            lo_ = constant ? nodes_[k - 1].p.b0 : inf;  // antidiagonal or empty: slow path
-            eb0_ = constant ? nodes_[k - 1].Eb0 : 0.0;
             hi_ = -inf;
+            return;
+        }
+        const Node& last = nodes_[k - 1];
+        lo_ = last.p.b0;
+        if (rising_) {
+            hi_ = k >= 2 ? nodes_[k - 2].p.phi(last.p.b0) : inf;
+        } else {
+            hi_ = last.p.v;
+            eb0_ = last.Eb0;
         }
     }
 
