@@ -358,6 +358,23 @@ def test_pickle_and_copy_exact(ss15):
     assert s != n
 
 
+def test_state_json_round_trip(ss15):
+    import json
+
+    from preisach import state_from_dict, state_to_dict
+
+    m = ss15[1]
+    for st in (m.neutral_state(-20.0), m.state_from_extrema([70, -50, 10]), m.negative_saturation()):
+        d = json.loads(json.dumps(state_to_dict(st)))
+        assert state_from_dict(d) == st
+    d = state_to_dict(m.neutral_state(10.0))
+    d["pieces"][0][2] = "curved"
+    with pytest.raises(ValueError, match="curved"):
+        state_from_dict(d)
+    with pytest.raises(ValueError, match="malformed"):
+        state_from_dict({"u_min": -100})
+
+
 # ---------------------------------------------------------------- result object
 def test_result_unpacks_and_plots(ss15):
     m = ss15[1]

@@ -18,7 +18,15 @@ except ImportError as exc:  # pragma: no cover - only without a built extension
     ) from exc
 
 from .errors import PreisachError, PreisachWarning, RecordingFormatError
-from .model import BUILTIN_MODELS, PreisachModel, SimulationResult, Slopes, State
+from .model import (
+    BUILTIN_MODELS,
+    PreisachModel,
+    SimulationResult,
+    Slopes,
+    State,
+    state_from_dict,
+    state_to_dict,
+)
 from .recording import Recording, RecordingWriter
 from .surface import TABLE_3_1, SqrtSurface
 
@@ -37,5 +45,7 @@ __all__ = [
     "SqrtSurface",
     "State",
     "TABLE_3_1",
+    "state_from_dict",
+    "state_to_dict",
     "__version__",
 ]

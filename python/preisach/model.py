@@ -30,7 +30,15 @@ from .surface import TABLE_3_1, SqrtSurface
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["PreisachModel", "SimulationResult", "Slopes", "State", "BUILTIN_MODELS"]
+__all__ = [
+    "BUILTIN_MODELS",
+    "PreisachModel",
+    "SimulationResult",
+    "Slopes",
+    "State",
+    "state_from_dict",
+    "state_to_dict",
+]
 
 State = _core.State
 PathLike = Union[str, "os.PathLike[str]"]
@@ -41,6 +49,36 @@ BUILTIN_MODELS: dict[str, int] = {"ss15-1hz": 1, "ss15-2hz": 2, "ss15-4hz": 4}
 _FORMAT = "preisach-model"
 _FORMAT_VERSION = 1
 _POLICIES = ("clamp", "raise")
+
+
+def state_to_dict(state: State) -> dict[str, Any]:
+    """JSON-friendly description of a state (volts): range, input and boundary pieces.
+
+    Each piece is ``[b0, v, kind]``: from ``beta = b0`` up to the next piece (or the input),
+    ``phi(beta) = v`` for ``kind == "constant"`` and ``phi(beta) = v - beta`` for
+    ``kind == "antidiagonal"``.
+    """
+    u_min, u_max, u, b0, v, ad = state.to_tuple()
+    return {
+        "u_min": float(u_min), "u_max": float(u_max), "input": float(u),
+        "pieces": [[float(a), float(b), "antidiagonal" if c else "constant"]
+                   for a, b, c in zip(b0, v, ad)],
+    }
+
+
+def state_from_dict(data: dict[str, Any]) -> State:
+    """Inverse of :func:`state_to_dict`; the boundary is validated."""
+    try:
+        pieces = data["pieces"]
+        kinds = [p[2] for p in pieces]
+        bad = [k for k in kinds if k not in ("constant", "antidiagonal")]
+        if bad:
+            raise ValueError(f"state: unknown piece kind {bad[0]!r}")
+        return State(float(data["u_min"]), float(data["u_max"]), float(data["input"]),
+                     np.array([p[0] for p in pieces], float), np.array([p[1] for p in pieces], float),
+                     np.array([k == "antidiagonal" for k in kinds], bool))
+    except (KeyError, IndexError, TypeError) as exc:
+        raise ValueError(f"state: malformed description ({exc!r})") from exc
 
 
 class Slopes(NamedTuple):
