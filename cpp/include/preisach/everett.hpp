@@ -11,7 +11,8 @@
 //
 // The table holds E at the grid nodes (alpha_i, beta_j), j <= i.  Between nodes E is
 // interpolated bilinearly in the square cells and linearly in the half-cells on the
-// diagonal, which keeps E (and so the model output) continuous and E(u, u) = 0 exactly.
+// diagonal, which keeps E (and so the model output) continuous; E(u, u) = 0 (exactly from
+// operator(), to rounding from the cell formula of value()).
 #pragma once
 
 #include <algorithm>

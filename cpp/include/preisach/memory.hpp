@@ -110,11 +110,11 @@ public:
                                                             std::to_string(p.b0) + ", ends at " +
                                                             std::to_string(end) + ")");
             const double tol = 1e-12 * (u_max_ - u_min_);
+            if (p.phi_start() > u_max_ + tol) throw std::invalid_argument(where + " lies beyond u_max");
             if (p.phi_start() > prev_phi_end + tol)
                 throw std::invalid_argument(where + ": the boundary must be non-increasing (Lipschitz in (r, s))");
             if (p.phi(end) < end - tol)
                 throw std::invalid_argument(where + " crosses the diagonal alpha = beta");
-            if (p.phi_start() > u_max_ + tol) throw std::invalid_argument(where + " lies beyond u_max");
             prev_phi_end = p.phi(end);
         }
     }
