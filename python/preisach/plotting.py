@@ -135,7 +135,7 @@ def plot_boundary(state: State, *, ax: Axes | None = None, coords: str = "alpha-
     ax.fill(t[:, 0], t[:, 1], color="tab:red", alpha=0.15, label="P- (relays at -1)")
     if len(state.b0):
         c = tr(np.vstack([[[lo, lo]], poly]))
-        ax.fill(c[:, 0], c[:, 1], color="tab:blue", alpha=0.35, label="P+ (relays at +1)")
+        ax.fill(c[:, 0], c[:, 1], color="#9cc0e6", label="P+ (relays at +1)")
     b = tr(poly) if len(poly) else np.empty((0, 2))
     if len(b):
         ax.plot(b[:, 0], b[:, 1], color="k", lw=1.5, label="boundary psi")
