@@ -17,6 +17,11 @@ using InArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 void register_everett(py::module_& m);
 void register_state(py::module_& m);
 void register_simulator(py::module_& m);
+void register_control(py::module_& m);
+void register_identify(py::module_& m);
+void register_diagnose(py::module_& m);
+void register_blocks(py::module_& m);
+void register_daq(py::module_& m);
 
 // A 1-D float64 array viewed without a copy; `name` is used in error messages.
 inline const double* as_vector(const InArray& a, const char* name, std::size_t& n) {

@@ -6,4 +6,9 @@ PYBIND11_MODULE(_core, m) {
     register_everett(m);
     register_state(m);
     register_simulator(m);
+    register_control(m);
+    register_identify(m);
+    register_diagnose(m);
+    register_blocks(m);
+    register_daq(m);
 }

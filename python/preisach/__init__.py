@@ -29,11 +29,16 @@ from .model import (
 )
 from .recording import Recording, RecordingWriter
 from .surface import TABLE_3_1, SqrtSurface
+from .diagnose import AugmentedModel, DiagnosisReport, diagnose, load_model  # noqa: E402,I001
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "AugmentedModel",
     "BUILTIN_MODELS",
+    "DiagnosisReport",
+    "diagnose",
+    "load_model",
     "PreisachError",
     "PreisachModel",
     "PreisachWarning",

@@ -3,20 +3,46 @@
 * :func:`find_fod_curves` / :func:`find_forc_curves` find first-order descending (FOD) or
   reversal (FORC) curves in any recording and read them on a grid of levels;
 * :func:`fit_sqrt_surface` identifies the constrained square-root FOD surface of the thesis
-  (section 3.3.2, Eq 3.2) from such a grid.
+  (section 3.3.2, Eq 3.2) from such a grid;
+* :func:`identify_fod` (Mayergoyz, C++), :func:`identify_surface` (square-root surface) and
+  :func:`identify_lsq` (least squares on every sample of any recording) each return a
+  ``(PreisachModel, IdentificationReport)``; :func:`project_nonnegative` and
+  :func:`weight_density` give the nearest model in Mp and the split mu = v + kappa delta.
 """
 
 from __future__ import annotations
 
 from .fod_finder import CurveRecord, FODData, find_fod_curves, find_forc_curves
+from .identifiers import (
+    DataUsage,
+    IdentificationReport,
+    ProjectionSummary,
+    Residuals,
+    identify_fod,
+    identify_lsq,
+    identify_surface,
+    project_nonnegative,
+    weight_density,
+)
+from .lsq import LsqDetails
 from .surface_fit import SurfaceFitResult, fit_sqrt_surface, format_table
 
 __all__ = [
     "CurveRecord",
+    "DataUsage",
     "FODData",
+    "IdentificationReport",
+    "LsqDetails",
+    "ProjectionSummary",
+    "Residuals",
     "SurfaceFitResult",
     "find_fod_curves",
     "find_forc_curves",
     "fit_sqrt_surface",
     "format_table",
+    "identify_fod",
+    "identify_lsq",
+    "identify_surface",
+    "project_nonnegative",
+    "weight_density",
 ]

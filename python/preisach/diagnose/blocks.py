@@ -1,0 +1,789 @@
+"""Physics blocks around a Preisach model: the candidate explanations of diagnosis.
+
+A block is a single-input single-output discrete-time system sampled every ``dt`` seconds,
+with a few named parameters (physical units, independent of ``dt``), an internal state,
+:meth:`Block.reset`, :meth:`Block.step` and a vectorised :meth:`Block.run` that continues from
+the current state.  Input-side blocks act on the input (V) before the Preisach operator,
+output-side blocks on its output (V).  The interface mirrors the C++ blocks of
+``cpp/include/preisach/blocks/`` (``kind``, ``params`` with units, ``reset(x0)`` returning
+the steady output, ``step``, ``run``), so the two can be unified; the functional forms here
+are deliberately generic (see each class) because diagnosis must not assume the exact laws
+of any one rig.
+
+Sampling convention (the same as the C++ blocks): ``step(x)`` advances one sample interval
+with the input held at ``x`` and returns the output at the end of the interval; linear blocks
+are discretised exactly under this zero-order hold.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import signal
+
+from .. import _core
+
+__all__ = [
+    "BLOCK_TYPES",
+    "Block",
+    "Creep",
+    "FirstOrderInputLag",
+    "FractionalDelay",
+    "GainOffset",
+    "LevelDependentGain",
+    "OutputFeedback",
+    "RateDependentPlay",
+    "RateDependentWidth",
+    "SensorDrift",
+    "StructuralMode",
+    "block_from_dict",
+]
+
+Array = NDArray[np.float64]
+
+
+def _finite(kind: str, name: str, value: Any) -> float:
+    v = float(value)
+    if not math.isfinite(v):
+        raise ValueError(f"{kind}: parameter {name} must be finite, got {value!r}")
+    return v
+
+
+def _positive(kind: str, name: str, value: Any) -> float:
+    v = _finite(kind, name, value)
+    if v <= 0:
+        raise ValueError(f"{kind}: parameter {name} must be > 0, got {value!r}")
+    return v
+
+
+def _nonneg(kind: str, name: str, value: Any) -> float:
+    v = _finite(kind, name, value)
+    if v < 0:
+        raise ValueError(f"{kind}: parameter {name} must be >= 0, got {value!r}")
+    return v
+
+
+def _as_input(kind: str, x: ArrayLike) -> Array:
+    a = np.ascontiguousarray(x, dtype=float)
+    if a.ndim != 1:
+        raise ValueError(f"{kind}: expected a 1-D input array, got shape {a.shape}")
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        raise ValueError(f"{kind}: input sample {int(bad[0])} is not finite")
+    return a
+
+
+class Block:
+    """Base class: a SISO block with named parameters, a state, ``reset``, ``step``, ``run``.
+
+    Subclasses set ``kind`` (short identifier), ``side`` (``"input"`` or ``"output"``) and
+    ``PARAMS`` (parameter names with units) and implement :meth:`_run` and :meth:`reset`.
+
+    Parameters
+    ----------
+    dt : float
+        Sample time (s).
+    **params : float
+        The parameters named in ``PARAMS`` (physical units, see the subclass).
+
+    """
+
+    kind: ClassVar[str] = ""
+    side: ClassVar[str] = "output"
+    PARAMS: ClassVar[tuple[tuple[str, str], ...]] = ()
+
+    def __init__(self, dt: float, **params: Any) -> None:
+        self.dt = _positive(self.kind or "block", "dt", dt)
+        names = [p for p, _ in self.PARAMS]
+        unknown = sorted(set(params) - set(names))
+        if unknown:
+            raise TypeError(f"{self.kind}: unknown parameter(s) {unknown}; expected {names}")
+        missing = [p for p in names if p not in params]
+        if missing:
+            raise TypeError(f"{self.kind}: missing parameter(s) {missing}")
+        self._params: dict[str, Any] = {}
+        self._set(params)
+        self.reset(0.0)
+
+    # -- parameters ---------------------------------------------------------------------
+    def _set(self, params: dict[str, Any]) -> None:
+        self._params = {k: params[k] for k, _ in self.PARAMS}
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """Parameter values by name (physical units, see :attr:`units`)."""
+        return dict(self._params)
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Unit of every parameter."""
+        return dict(self.PARAMS)
+
+    def with_dt(self, dt: float) -> Block:
+        """The same physical block for another sample time (fresh state)."""
+        return type(self)(dt, **self._params)
+
+    # -- simulation ---------------------------------------------------------------------
+    def reset(self, x0: float) -> float:  # pragma: no cover - abstract
+        """Reset to the steady state for the constant input ``x0``; returns the output."""
+        raise NotImplementedError
+
+    def run(self, x: ArrayLike) -> Array:
+        """Process the samples ``x`` from the current state (which is advanced)."""
+        return self._run(_as_input(self.kind, x))
+
+    def _run(self, x: Array) -> Array:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def step(self, x: float) -> float:
+        """Advance one sample with input ``x``; returns the output."""
+        return float(self.run(np.array([x], dtype=float))[0])
+
+    # -- persistence --------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly description: kind, side, dt and parameters."""
+        p = {
+            k: (list(map(float, v)) if isinstance(v, (list, tuple, np.ndarray)) else float(v))
+            for k, v in self._params.items()
+        }
+        return {
+            "type": type(self).__name__,
+            "kind": self.kind,
+            "side": self.side,
+            "dt": self.dt,
+            "params": p,
+        }
+
+    def describe(self) -> str:
+        """One line with the parameters and their units."""
+        parts = []
+        for k, unit in self.PARAMS:
+            v = self._params[k]
+            if isinstance(v, (list, tuple, np.ndarray)):
+                parts.append(f"{k}=[{', '.join(f'{float(a):.4g}' for a in v)}] {unit}".rstrip())
+            else:
+                parts.append(f"{k}={float(v):.4g} {unit}".rstrip())
+        return f"{self.kind}({', '.join(parts)})"
+
+    def __repr__(self) -> str:
+        return f"<{self.describe()} dt={self.dt:g} s, {self.side} side>"
+
+
+def _steady_zi(b: Array, a: Array) -> Array:
+    """Direct-form-II-transposed state of ``lfilter(b, a)`` at rest with a unit input.
+
+    With ``a[0] = 1`` and DC gain ``g = sum(b) / sum(a)``, the state recursion at rest gives
+    ``z_k = sum_{j > k} (b_j - a_j g)``; cheaper than :func:`scipy.signal.lfilter_zi`.
+    """
+    n = max(len(a), len(b))
+    bb = np.zeros(n)
+    aa = np.zeros(n)
+    bb[: len(b)] = b
+    aa[: len(a)] = a
+    g = bb.sum() / aa.sum()
+    d = bb - aa * g
+    return np.cumsum(d[::-1])[::-1][1:]
+
+
+class _LinearFilter(Block):
+    """A unit-DC-gain linear filter y = x + m (H x - x) held as ``(b, a)`` + ``zi``."""
+
+    _b: Array
+    _a: Array
+
+    def _design(self) -> tuple[Array, Array, float]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set(params)
+        self._b, self._a, self._mix = self._design()
+        self._zi = np.zeros(max(len(self._a), len(self._b)) - 1)
+
+    def reset(self, x0: float) -> float:
+        """Steady state for the constant input ``x0`` (unit DC gain: returns ``x0``)."""
+        x0 = _finite(self.kind, "x0", x0)
+        self._zi = _steady_zi(self._b, self._a) * x0 if self._zi.size else self._zi
+        return x0
+
+    def _run(self, x: Array) -> Array:
+        if not self._zi.size:
+            h = signal.lfilter(self._b, self._a, x)
+        else:
+            h, self._zi = signal.lfilter(self._b, self._a, x, zi=self._zi)
+        return x + self._mix * (h - x)
+
+
+def _expm2(A: Array) -> Array:
+    """``exp(A)`` of a real 2x2 matrix, stable for equal eigenvalues.
+
+    ``exp(A) = e^s (cosh(q) I + sinh(q) / q (A - s I))`` with ``s = tr(A) / 2`` and
+    ``q^2 = s^2 - det(A)`` (``q`` complex for complex eigenvalues; ``sinh(q)/q`` by its series
+    near ``q = 0``).
+    """
+    s = 0.5 * (A[0, 0] + A[1, 1])
+    det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    q2 = s * s - det
+    q = np.sqrt(complex(q2))
+    if abs(q) < 1e-4:
+        ch = 1 + q2 / 2 + q2 * q2 / 24
+        sh = 1 + q2 / 6 + q2 * q2 / 120
+    else:
+        ch = np.cosh(q)
+        sh = np.sinh(q) / q
+    return (math.exp(s) * (complex(ch) * np.eye(2) + complex(sh) * (A - s * np.eye(2)))).real
+
+
+def _mode_zoh(wn: float, zeta: float, dt: float) -> tuple[Array, Array]:
+    """Exact zero-order-hold discretisation of ``wn^2 / (s^2 + 2 zeta wn s + wn^2)``.
+
+    With the state ``[p, dp/dt]``: ``Phi = exp(A dt)`` and ``Gamma = A^-1 (Phi - I) B``; the
+    denominator is the characteristic polynomial of ``Phi`` and the numerator follows from
+    the step response at the ends of the first two sample intervals.  Convention of the
+    blocks (``cpp/include/preisach/blocks/linear.hpp``): ``y[k]`` is the output at the end of
+    the interval over which ``x[k]`` is held.
+    """
+    A = np.array([[0.0, 1.0], [-wn * wn, -2.0 * zeta * wn]])
+    B = np.array([0.0, wn * wn])
+    Phi = _expm2(A * dt)
+    Gamma = np.linalg.solve(A, (Phi - np.eye(2)) @ B)
+    a1, a2 = -float(np.trace(Phi)), float(np.linalg.det(Phi))
+    x1 = Gamma
+    x2 = Phi @ x1 + Gamma
+    b1 = float(x1[0])
+    b2 = float(x2[0]) - b1 + a1 * b1
+    b = np.array([b1, b2])
+    a = np.array([1.0, a1, a2])
+    b *= a.sum() / b.sum()  # exact unit DC gain after rounding
+    return b, a
+
+
+class StructuralMode(_LinearFilter):
+    """A lightly damped structural mode after the hysteresis (output side).
+
+    ``y = x + m (G x - x)`` with ``G(s) = wn^2 / (s^2 + 2 zeta wn s + wn^2)``,
+    ``wn = 2 pi f_n``, discretised exactly under a zero-order hold.  ``m`` (participation)
+    is the fraction of the measured output that passes through the mode (1: the sensor sees
+    only the beam's response).  Unit DC gain: quasi-static signals pass unchanged; steps
+    ring at ``f_n``.
+
+    Parameters
+    ----------
+    f_n : float
+        Natural frequency (Hz).
+    zeta : float
+        Damping ratio (1).
+    participation : float
+        ``m`` (1).
+
+    """
+
+    kind = "structural_mode"
+    side = "output"
+    PARAMS = (("f_n", "Hz"), ("zeta", ""), ("participation", ""))
+
+    def _design(self) -> tuple[Array, Array, float]:
+        fn = _positive(self.kind, "f_n", self._params["f_n"])
+        z = _positive(self.kind, "zeta", self._params["zeta"])
+        m = _finite(self.kind, "participation", self._params["participation"])
+        b, a = _mode_zoh(2 * math.pi * fn, z, self.dt)
+        return b, a, m
+
+
+class Creep(Block):
+    """Creep: part of every output change arrives slowly (output side).
+
+    ``y = g x + sum_i c_i (L_i x - x)`` with first-order lags ``L_i`` of time constants
+    ``tau_i`` (exact under a zero-order hold).  After a step of size D the output first moves
+    by ``(g - sum c_i) D`` and then creeps by ``c_i D`` with time constant ``tau_i``; the
+    settled gain is ``g``.  A sum of lags one decade apart is the standard Prony-series
+    representation of the logarithmic creep of piezo actuators, so this form fits creep laws
+    of any shape on the time scales covered, not one particular law.
+
+    Parameters
+    ----------
+    taus : sequence of float
+        Time constants (s).
+    weights : sequence of float
+        ``c_i`` (fractions of the move, 1 = 100 %), one per time constant.
+    gain : float
+        Settled gain ``g`` (1).
+
+    """
+
+    kind = "creep"
+    side = "output"
+    PARAMS = (("taus", "s"), ("weights", ""), ("gain", ""))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        taus = [float(t) for t in np.atleast_1d(params["taus"])]
+        w = [float(c) for c in np.atleast_1d(params["weights"])]
+        if len(taus) != len(w) or not taus:
+            raise ValueError(
+                f"creep: need one weight per time constant, got {len(w)} weights "
+                f"for {len(taus)} time constants"
+            )
+        for t in taus:
+            _positive(self.kind, "taus", t)
+        for c in w:
+            _finite(self.kind, "weights", c)
+        self._params = {
+            "taus": taus,
+            "weights": w,
+            "gain": _finite(self.kind, "gain", params["gain"]),
+        }
+        # parallel first-order sections (a common denominator loses precision for slow poles)
+        self._lags = [math.exp(-self.dt / t) for t in taus]
+        self._z = np.zeros(len(taus))
+
+    def reset(self, x0: float) -> float:
+        """Every lag settled at ``x0``; returns ``gain * x0``."""
+        x0 = _finite(self.kind, "x0", x0)
+        self._z = np.full(len(self._lags), x0)
+        return self._params["gain"] * x0
+
+    def _run(self, x: Array) -> Array:
+        p = self._params
+        y = p["gain"] * x
+        for k, (e, c) in enumerate(zip(self._lags, p["weights"])):
+            lag, _ = signal.lfilter([1 - e], [1.0, -e], x, zi=[e * self._z[k]])
+            if x.size:
+                self._z[k] = lag[-1]
+            if c != 0.0:
+                y = y + c * (lag - x)
+        return y
+
+
+class FractionalDelay(Block):
+    """Transport delay or measurement lag of the output (output side).
+
+    ``y(t) = x(t - tau)``, linearly interpolated between samples, so ``tau`` need not be a
+    multiple of the sample time.  At frequencies well below ``1 / (2 pi tau)`` a first-order
+    measurement lag, a moving-average filter or an anti-alias filter act like a delay equal
+    to their group delay, so this one parameter stands for all of them.
+
+    Parameters
+    ----------
+    tau : float
+        Delay (s), >= 0.
+
+    """
+
+    kind = "delay"
+    side = "output"
+    PARAMS = (("tau", "s"),)
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set({"tau": _nonneg(self.kind, "tau", params["tau"])})
+        d = self._params["tau"] / self.dt
+        self._n = int(math.floor(d))
+        self._frac = d - self._n
+        self._buf = np.zeros(self._n + 1)
+
+    def reset(self, x0: float) -> float:
+        """Buffer filled with ``x0``; returns ``x0``."""
+        x0 = _finite(self.kind, "x0", x0)
+        self._buf = np.full(self._n + 1, x0)
+        return x0
+
+    def _run(self, x: Array) -> Array:
+        full = np.concatenate([self._buf, x])
+        k0 = self._buf.size  # index of x[0] in full
+        idx = np.arange(x.size) + k0 - self._n
+        y = (1 - self._frac) * full[idx] + self._frac * full[idx - 1]
+        self._buf = full[-(self._n + 1) :]
+        return y
+
+
+class FirstOrderInputLag(Block):
+    """Rate-dependent hysteresis from a lag before the hysteresis (input side).
+
+    The relays see the input through a first-order lag, ``tau dz/dt = u - z`` (exact under
+    a zero-order hold): e.g. an amplifier driving the piezo's capacitance through its output
+    impedance.  To first order the relays see ``u - tau du/dt``, so loops widen in proportion
+    to the rate - like a delay after the hysteresis; unlike a delay, the lag lowers the
+    extrema the relays see at sharp reversals (by about ``0.7 tau |du/dt|``), which changes the
+    branches that follow.
+
+    Parameters
+    ----------
+    tau : float
+        Time constant (s), >= 0 (0 passes the input unchanged).
+
+    """
+
+    kind = "rate_dependence"
+    side = "input"
+    PARAMS = (("tau", "s"),)
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set({"tau": _nonneg(self.kind, "tau", params["tau"])})
+        t = self._params["tau"]
+        self._e = math.exp(-self.dt / t) if t > 0 else 0.0
+        self._z = 0.0
+
+    def reset(self, x0: float) -> float:
+        """Settled at ``x0``; returns ``x0``."""
+        self._z = _finite(self.kind, "x0", x0)
+        return self._z
+
+    def _run(self, x: Array) -> Array:
+        if x.size == 0 or self._e == 0.0:
+            if x.size:
+                self._z = float(x[-1])
+            return x.copy()
+        e = self._e
+        y, _ = signal.lfilter([1 - e], [1.0, -e], x, zi=[e * self._z])
+        self._z = float(y[-1])
+        return y
+
+
+class RateDependentPlay(Block):
+    """Rate-dependent hysteresis: loops widen with the input rate (input side).
+
+    The Preisach operator sees the input through a play (backlash) operator of half-width
+    ``w(t) = w_ref (|v(t)| / v_ref) ** p``, where ``v`` is the input rate ``du/dt`` smoothed by
+    a first-order lag of time constant ``tau_v``.  Driving relays through a play of width
+    ``w`` moves their thresholds apart to ``alpha + w`` and ``beta - w``: the
+    threshold-dilation form of rate-dependent Prandtl-Ishlinskii and Preisach models.
+    ``p = 1`` is close to a first-order lag on the input (amplifier driving a capacitive
+    load), ``p < 1`` a loop width growing sublinearly (e.g. logarithmically) with the rate,
+    ``p = 0`` a rate-independent extra width.
+
+    Parameters
+    ----------
+    w_ref : float
+        Half-width (V) at the reference rate, >= 0.
+    exponent : float
+        ``p`` (1), >= 0.
+    v_ref : float
+        Reference rate (V/s), > 0.
+    tau_v : float
+        Time constant (s) of the rate smoothing, > 0.
+
+    """
+
+    kind = "rate_dependence"
+    side = "input"
+    PARAMS = (("w_ref", "V"), ("exponent", ""), ("v_ref", "V/s"), ("tau_v", "s"))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set(
+            {
+                "w_ref": _nonneg(self.kind, "w_ref", params["w_ref"]),
+                "exponent": _nonneg(self.kind, "exponent", params["exponent"]),
+                "v_ref": _positive(self.kind, "v_ref", params["v_ref"]),
+                "tau_v": _positive(self.kind, "tau_v", params["tau_v"]),
+            }
+        )
+        self._e = math.exp(-self.dt / self._params["tau_v"])
+        self._last = 0.0
+        self._v = 0.0
+        self._z = 0.0
+
+    def reset(self, x0: float) -> float:
+        """At rest at ``x0`` (rate 0, play output ``x0``); returns ``x0``."""
+        x0 = _finite(self.kind, "x0", x0)
+        self._last, self._v, self._z = x0, 0.0, x0
+        return x0
+
+    def width(self, x: Array) -> tuple[Array, Array]:
+        """Half-width (V) and smoothed rate (V/s) for the input ``x`` (state not advanced)."""
+        v = np.diff(np.concatenate([[self._last], x])) / self.dt
+        e = self._e
+        vf, _ = signal.lfilter([1 - e], [1.0, -e], v, zi=[e * self._v])
+        p = self._params
+        return p["w_ref"] * (np.abs(vf) / p["v_ref"]) ** p["exponent"], np.asarray(vf)
+
+    def _run(self, x: Array) -> Array:
+        if x.size == 0:
+            return x.copy()
+        w, vf = self.width(x)
+        z, last = _core.play_operator(x, w, self._z)
+        self._last, self._v, self._z = float(x[-1]), float(vf[-1]), float(last)
+        return np.asarray(z)
+
+
+class SensorDrift(Block):
+    """Sensor offset drifting with time, unrelated to the input (output side).
+
+    ``y = x + offset + rate * t`` with ``t`` the time since :meth:`reset`.  Diagnosis fits
+    the drift of each recording as a smooth function of time (a spline); what carries over
+    to new runs, and is stored here, is its deterministic part: the mean rate.
+
+    Parameters
+    ----------
+    offset : float
+        Offset at reset (V).
+    rate : float
+        Drift rate (V/s).
+
+    """
+
+    kind = "sensor_drift"
+    side = "output"
+    PARAMS = (("offset", "V"), ("rate", "V/s"))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set({k: _finite(self.kind, k, params[k]) for k in ("offset", "rate")})
+        self._k = 0
+
+    def reset(self, x0: float) -> float:
+        """Time back to 0; returns ``x0 + offset``."""
+        self._k = 0
+        return _finite(self.kind, "x0", x0) + self._params["offset"]
+
+    def _run(self, x: Array) -> Array:
+        t = (self._k + 1 + np.arange(x.size)) * self.dt
+        self._k += x.size
+        return x + self._params["offset"] + self._params["rate"] * t
+
+
+class LevelDependentGain(Block):
+    """A nonlinear sensor: a static curve between the actuator output and the reading (output side).
+
+    ``y = x + Y (c2 q^2 + c3 q^3)``, ``q = (x - x_c) / Y``: a static map after the Preisach
+    operator (e.g. a strain-gauge bridge's nonlinearity) whose slope ``1 + 2 c2 q + 3 c3 q^2``
+    scales small loops according to where on the output axis they sit.  ``x_c`` and ``Y`` are
+    the centre and half-span of the model's output range (fixed, not fitted).  A classical
+    model identified from FOD curves already absorbs any static map on those curves, so
+    diagnosis fits it together with the Preisach weights when the identification recording is
+    given.
+
+    Parameters
+    ----------
+    c2, c3 : float
+        Quadratic and cubic coefficients (1).
+    x_c : float
+        Centre of the output range (V).
+    span : float
+        ``Y`` (V), > 0.
+
+    """
+
+    kind = "sensor_nonlinearity"
+    side = "output"
+    PARAMS = (("c2", ""), ("c3", ""), ("x_c", "V"), ("span", "V"))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set(
+            {
+                "c2": _finite(self.kind, "c2", params["c2"]),
+                "c3": _finite(self.kind, "c3", params["c3"]),
+                "x_c": _finite(self.kind, "x_c", params["x_c"]),
+                "span": _positive(self.kind, "span", params["span"]),
+            }
+        )
+
+    def reset(self, x0: float) -> float:
+        """Static map: returns the output for ``x0``."""
+        return float(self._run(np.array([_finite(self.kind, "x0", x0)]))[0])
+
+    def _run(self, x: Array) -> Array:
+        p = self._params
+        q = (x - p["x_c"]) / p["span"]
+        return x + p["span"] * (p["c2"] * q * q + p["c3"] * q**3)
+
+    def slope(self, x: ArrayLike) -> Array:
+        """``dy/dx`` (1): the factor by which a small minor loop at level ``x`` is scaled."""
+        p = self._params
+        q = (np.asarray(x, dtype=float) - p["x_c"]) / p["span"]
+        return 1 + 2 * p["c2"] * q + 3 * p["c3"] * q * q
+
+    def inverse(self, y: ArrayLike) -> Array:
+        """``x`` with ``self(x) = y`` (Newton iteration; the map must be monotone on the range)."""
+        y = np.asarray(y, dtype=float)
+        x = y.copy()
+        for _ in range(30):
+            f = self._run(x) - y
+            x = x - f / self.slope(x)
+            if np.max(np.abs(f), initial=0.0) < 1e-13 * max(1.0, self._params["span"]):
+                break
+        return x
+
+
+class OutputFeedback(Block):
+    """Non-congruent minor loops: the output feeds back on the relays' input (Preisach stage).
+
+    The relays see ``u_eff = u + a d + b d^2 / span + c d^3 / span^2``, ``d = y_prev - y_c``
+    (the previous output relative to the centre of the output range): a moving Preisach model
+    (Della Torre, ``H_eff = H + alpha M``) with a quadratic term (feedback differing between
+    the top and the bottom of the range) and a cubic one (feedback saturating or growing
+    toward both ends).  Minor loops between the same two inputs
+    then differ with the output level they sit at.  This block is not a filter on a signal: it
+    changes how the Preisach operator is run, so :class:`~preisach.diagnose.AugmentedModel`
+    runs the operator with it (``preisach._core.simulate_moving``); :meth:`run` is the feedback
+    map from the previous output to the input shift (V).
+
+    Parameters
+    ----------
+    a : float
+        Linear feedback gain (V of input per V of output).
+    b : float
+        Quadratic feedback gain (V/V).
+    c : float
+        Cubic feedback gain (V/V).
+    y_c : float
+        Centre of the output range (V).
+    span : float
+        Half-span of the output range (V), > 0.
+
+    """
+
+    kind = "non_congruence"
+    side = "feedback"
+    PARAMS = (("a", "V/V"), ("b", "V/V"), ("c", "V/V"), ("y_c", "V"), ("span", "V"))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set(
+            {
+                "a": _finite(self.kind, "a", params["a"]),
+                "b": _finite(self.kind, "b", params["b"]),
+                "c": _finite(self.kind, "c", params["c"]),
+                "y_c": _finite(self.kind, "y_c", params["y_c"]),
+                "span": _positive(self.kind, "span", params["span"]),
+            }
+        )
+
+    def reset(self, x0: float) -> float:
+        """Static map: the input shift (V) for the previous output ``x0`` (V)."""
+        return float(self._run(np.array([_finite(self.kind, "x0", x0)]))[0])
+
+    def _run(self, x: Array) -> Array:
+        p = self._params
+        d = x - p["y_c"]
+        q = d / p["span"]
+        return d * (p["a"] + q * (p["b"] + p["c"] * q))
+
+    def simulate(self, table: Any, u: ArrayLike, state: Any) -> tuple[Array, Array, Any]:
+        """Run the Preisach ``table`` with this feedback; returns ``(y, u_eff, final_state)``."""
+        p = self._params
+        y, ue, fin = _core.simulate_moving(
+            table, np.ascontiguousarray(u, dtype=float), state, p["a"], p["b"], p["y_c"], p["span"],
+            p["c"],
+        )
+        return np.asarray(y), np.asarray(ue), fin
+
+
+class RateDependentWidth(Block):
+    """Rate-dependent hysteresis: the loop width grows with the input rate (output side).
+
+    ``y = x + c (rho / rho_ref) ** p (x - A(u))``: the hysteretic deviation of the Preisach
+    output ``x`` from the model's anhysteretic curve ``A(u)`` (the output of the neutral state
+    at the current input) is scaled up by a power of the smoothed input rate ``rho``
+    (``|du/dt|`` through a first-order lag ``tau_v``): at higher rates the ascending and
+    descending branches lie further apart, as the thesis observed between its 1, 2 and 4 Hz
+    identifications.  The block needs the input and the anhysteretic curve besides ``x``, so
+    diagnosis and :class:`~preisach.diagnose.AugmentedModel` call :meth:`apply`;
+    :meth:`run` is not available.
+
+    Parameters
+    ----------
+    c : float
+        Relative widening at the reference rate (1).
+    exponent : float
+        ``p`` (1), >= 0.
+    rho_ref : float
+        Reference rate (V/s), > 0.
+    tau_v : float
+        Time constant (s) of the rate smoothing, > 0.
+
+    """
+
+    kind = "rate_dependence"
+    side = "output"
+    PARAMS = (("c", ""), ("exponent", ""), ("rho_ref", "V/s"), ("tau_v", "s"))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set(
+            {
+                "c": _finite(self.kind, "c", params["c"]),
+                "exponent": _nonneg(self.kind, "exponent", params["exponent"]),
+                "rho_ref": _positive(self.kind, "rho_ref", params["rho_ref"]),
+                "tau_v": _positive(self.kind, "tau_v", params["tau_v"]),
+            }
+        )
+
+    def reset(self, x0: float) -> float:
+        """At rest (rate 0): returns ``x0``."""
+        return _finite(self.kind, "x0", x0)
+
+    def _run(self, x: Array) -> Array:
+        raise TypeError(
+            "rate_dependence (loop width): needs the input and the anhysteretic curve; use apply()"
+        )
+
+    def rate_factor(self, u: ArrayLike) -> Array:
+        """``(rho / rho_ref) ** p`` for the input samples ``u`` (V), from rest."""
+        uu = np.asarray(u, dtype=float)
+        v = np.abs(np.diff(uu, prepend=uu[:1])) / self.dt
+        e = math.exp(-self.dt / self._params["tau_v"])
+        rho, _ = signal.lfilter([1 - e], [1.0, -e], v, zi=[0.0])
+        return (np.maximum(rho, 0.0) / self._params["rho_ref"]) ** self._params["exponent"]
+
+    def apply(self, x: ArrayLike, u: ArrayLike, anhysteretic: ArrayLike) -> Array:
+        """Output (V) for the Preisach output ``x``, the input ``u`` and ``A(u)`` (all V)."""
+        xx = np.asarray(x, dtype=float)
+        return xx + self._params["c"] * self.rate_factor(u) * (
+            xx - np.asarray(anhysteretic, dtype=float)
+        )
+
+
+class GainOffset(Block):
+    """Calibration error: the output scale and zero differ from the model's (output side).
+
+    ``y = gain * x + offset``.
+
+    Parameters
+    ----------
+    gain : float
+        Scale (1).
+    offset : float
+        Zero shift (V).
+
+    """
+
+    kind = "gain_offset"
+    side = "output"
+    PARAMS = (("gain", ""), ("offset", "V"))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        super()._set({k: _finite(self.kind, k, params[k]) for k in ("gain", "offset")})
+
+    def reset(self, x0: float) -> float:
+        """Static map: returns ``gain * x0 + offset``."""
+        return self._params["gain"] * _finite(self.kind, "x0", x0) + self._params["offset"]
+
+    def _run(self, x: Array) -> Array:
+        return self._params["gain"] * x + self._params["offset"]
+
+
+#: Block classes by class name (several may share a ``kind``: two forms of rate dependence).
+BLOCK_TYPES: dict[str, type[Block]] = {
+    c.__name__: c
+    for c in (
+        StructuralMode,
+        Creep,
+        FractionalDelay,
+        FirstOrderInputLag,
+        RateDependentPlay,
+        RateDependentWidth,
+        SensorDrift,
+        LevelDependentGain,
+        OutputFeedback,
+        GainOffset,
+    )
+}
+
+
+def block_from_dict(data: dict[str, Any]) -> Block:
+    """Inverse of :meth:`Block.to_dict`."""
+    try:
+        cls = BLOCK_TYPES[data["type"]]
+    except KeyError as exc:
+        raise ValueError(
+            f"block: unknown type {data.get('type')!r}; known: {sorted(BLOCK_TYPES)}"
+        ) from exc
+    return cls(float(data["dt"]), **data["params"])

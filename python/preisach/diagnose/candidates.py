@@ -1,0 +1,551 @@
+"""Candidate explanations: each a physics block with few parameters, and how to fit it.
+
+An effect may be tested in several forms (``variant``): ``rate_dependence`` as a first-order
+lag on the input, as threshold dilation growing with a power of the rate (sublinear widening
+included), and as a rate-scaled loop width; the best form is kept and reported under the
+effect's name.
+
+A candidate knows its block (``preisach.diagnose.blocks``), where it sits in the chain
+(input side, or its place among the output blocks), its fitted parameters with bounds and a
+scale, how to find starting values, and how to state its result in one line.  The engine
+(:mod:`preisach.diagnose.engine`) fits it on training samples and scores it on held-out ones.
+
+Chain: input side (``rate_dependence`` threshold dilation) -> Preisach operator (with the
+``non_congruence`` output feedback) -> output side in this order: ``rate_dependence`` loop
+width, ``sensor_nonlinearity``, ``creep`` (material), ``structural_resonance`` (the beam),
+``gain_offset`` (sensor calibration), ``delay`` (measurement chain), ``sensor_drift``
+(additive, last).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .blocks import (
+    Block,
+    Creep,
+    FirstOrderInputLag,
+    FractionalDelay,
+    GainOffset,
+    LevelDependentGain,
+    OutputFeedback,
+    RateDependentPlay,
+    RateDependentWidth,
+    SensorDrift,
+    StructuralMode,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .engine import Context, Stage
+
+__all__ = ["CANDIDATES", "EFFECTS", "Candidate", "ParamSpec", "default_candidates"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """A fitted parameter: name, unit, bounds and a typical magnitude (for scaling)."""
+
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    scale: float
+
+
+class Candidate:
+    """Base class of the candidate explanations.
+
+    Attributes
+    ----------
+    name : str
+        Effect name used in reports (``"delay"``, ``"creep"``, ...).
+    side : str
+        ``"input"`` or ``"output"``.
+    order : int
+        Position among the output-side blocks (ignored on the input side).
+    physics : str
+        What the effect is, in words.
+
+    """
+
+    name: ClassVar[str] = ""
+    variant: ClassVar[str] = ""
+    side: ClassVar[str] = "output"
+    order: ClassVar[int] = 0
+    physics: ClassVar[str] = ""
+
+    def __init__(self) -> None:
+        self.fixed: dict[str, float] = {}
+
+    @property
+    def key(self) -> str:
+        """Unique identifier: the name, plus the variant when the effect has several forms."""
+        return f"{self.name}/{self.variant}" if self.variant else self.name
+
+    # -- set-up ---------------------------------------------------------------------------
+    def prepare(self, ctx: Context) -> None:
+        """Fix data-dependent constants (reference rate, output range, ...)."""
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:  # pragma: no cover - abstract
+        """Fitted parameters with bounds."""
+        raise NotImplementedError
+
+    def starts(self, ctx: Context) -> list[Array]:
+        """Starting vectors for the optimiser (the engine keeps the best fit)."""
+        return [np.array([0.0 if s.lo <= 0.0 <= s.hi else s.lo for s in self.specs(ctx)])]
+
+    def n_params(self, ctx: Context) -> int:
+        """Number of fitted parameters (for the parsimony penalty)."""
+        return len(self.specs(ctx))
+
+    # -- model ------------------------------------------------------------------------------
+    def params(self, x: Array) -> dict[str, Any]:  # pragma: no cover - abstract
+        """Block parameters (physical units) from the fitted vector."""
+        raise NotImplementedError
+
+    def block(self, x: Array, dt: float) -> Block:
+        """The block for the fitted vector ``x`` at sample time ``dt``.
+
+        Blocks are cached by ``(x, dt)`` (a fit evaluates the same parameters on every
+        recording); callers reset a block before running it, so sharing one is safe.
+        """
+        key = (np.asarray(x, dtype=float).tobytes(), float(dt), tuple(sorted(self.fixed.items())))
+        cache = self.__dict__.setdefault("_blocks", {})
+        blk = cache.get(key)
+        if blk is None:
+            if len(cache) > 256:
+                cache.clear()
+            blk = cache[key] = self.block_type(dt, **self.params(x))
+        return blk
+
+    block_type: ClassVar[type[Block]] = Block
+
+    def apply(self, x: Array, signal_in: Array, dt: float, stage: Stage, ctx: Context) -> Array:
+        """Run the block from its steady state at the first sample (output side)."""
+        b = self.block(x, dt)
+        b.reset(float(signal_in[0]))
+        return b.run(signal_in)
+
+    # -- reporting --------------------------------------------------------------------------
+    def report_params(self, x: Array, cov: Array | None, ctx: Context) -> dict[str, dict[str, Any]]:
+        """Parameters with standard uncertainties and units for the report."""
+        out: dict[str, dict[str, Any]] = {}
+        sd = np.sqrt(np.clip(np.diag(cov), 0, None)) if cov is not None else np.full(len(x), np.nan)
+        for s, v, e in zip(self.specs(ctx), x, sd):
+            out[s.name] = {"value": float(v), "std": float(e), "unit": s.unit}
+        return out
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:  # pragma: no cover
+        """One line a user can act on."""
+        raise NotImplementedError
+
+
+def _pm(v: float, e: float, fmt: str = ".3g") -> str:
+    """``value ± uncertainty`` with the value rounded to the uncertainty's second digit."""
+    if not (np.isfinite(e) and e > 0):
+        return f"{v:{fmt}}"
+    digits = max(0, 1 - int(math.floor(math.log10(e))))
+    if digits > 12:
+        return f"{v:{fmt}} ± {e:.2g}"
+    return f"{v:.{digits}f} ± {e:.{digits}f}"
+
+
+def _sd(cov: Array | None, i: int) -> float:
+    return float(math.sqrt(max(cov[i, i], 0.0))) if cov is not None else float("nan")
+
+
+# ----------------------------------------------------------------------------------------
+class DelayCandidate(Candidate):
+    """Transport delay or measurement lag of the output."""
+
+    name = "delay"
+    order = 4
+    physics = (
+        "the measured output lags the model (transport delay, ADC pipeline or measurement filter)"
+    )
+    block_type = FractionalDelay
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [ParamSpec("tau", "s", 0.0, ctx.max_delay, 1e-3)]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        grid = np.concatenate([[0.25, 0.5], np.arange(1, 11), [15, 20, 30, 50]]) * ctx.dt_min
+        grid = grid[grid <= ctx.max_delay]
+        return ctx.grid_search(self, [np.array([g]) for g in grid], top=1)
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"tau": max(float(x[0]), 0.0)}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        ms, e = 1e3 * x[0], 1e3 * _sd(cov, 0)
+        return (
+            f"the measurement lags the input by {_pm(ms, e, '.3g')} ms "
+            f"({ms / (1e3 * ctx.dt_min):.2g} samples): a transport delay or measurement filter; "
+            "shift the recorded output by this much or keep the delay block"
+        )
+
+
+class RateLagCandidate(Candidate):
+    """Rate-dependent hysteresis: a first-order lag before the relays."""
+
+    name = "rate_dependence"
+    variant = "input_lag"
+    side = "input"
+    physics = "hysteresis loops widen with the input rate: the relays see the input through a lag"
+    block_type = FirstOrderInputLag
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [ParamSpec("tau", "s", 0.0, ctx.max_delay, 1e-3)]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        grid = np.array([0.25, 0.5, 1, 2, 4, 8, 16, 32]) * ctx.dt_min
+        return ctx.grid_search(self, [np.array([g]) for g in grid[grid <= ctx.max_delay]], top=1)
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"tau": max(float(x[0]), 0.0)}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        ms, e = 1e3 * x[0], 1e3 * _sd(cov, 0)
+        return (
+            "hysteresis loops widen with the input rate: the relays see the input through a lag "
+            f"of "
+            f"{_pm(ms, e)} ms (e.g. the amplifier charging the piezo's capacitance); raise the "
+            "amplifier's bandwidth or keep the input-lag block"
+        )
+
+
+class RateCandidate(Candidate):
+    """Rate-dependent hysteresis: relay thresholds move apart with the input rate."""
+
+    name = "rate_dependence"
+    variant = "threshold_dilation"
+    side = "input"
+    physics = "hysteresis loops widen with the input rate (rate-dependent threshold dilation)"
+    block_type = RateDependentPlay
+
+    def prepare(self, ctx: Context) -> None:
+        self.fixed = {"v_ref": ctx.reference_rate, "tau_v": max(5e-3, 2 * ctx.dt_min)}
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        span = ctx.u_span
+        return [
+            ParamSpec("w_ref", "V", 0.0, 0.05 * span, 1e-3 * span),
+            ParamSpec("exponent", "", 0.0, 2.0, 0.3),
+        ]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        span = ctx.u_span
+        cands = [np.array([w * span, p]) for p in (0.4, 1.0) for w in (1e-3, 6e-3)]
+        return ctx.grid_search(self, cands, top=1)
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"w_ref": max(float(x[0]), 0.0), "exponent": max(float(x[1]), 0.0), **self.fixed}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        v = self.fixed["v_ref"]
+        lag_ms = 1e3 * x[0] / v
+        return (
+            f"hysteresis loops widen with the input rate: the relay thresholds move apart by "
+            f"{_pm(x[0], _sd(cov, 0))} V at {v:.3g} V/s, growing as "
+            f"rate^{_pm(x[1], _sd(cov, 1), '.2f')} "
+            f"(at that rate like an input lag of {lag_ms:.2g} ms); identify the model at the "
+            "operating rate or keep the rate-dependence block"
+        )
+
+
+class RateWidthCandidate(Candidate):
+    """Rate-dependent hysteresis: the loop width scales with a power of the input rate."""
+
+    name = "rate_dependence"
+    variant = "loop_width"
+    order = -1
+    physics = "hysteresis loops widen with the input rate (hysteretic deviation scaled by the rate)"
+    block_type = RateDependentWidth
+
+    def prepare(self, ctx: Context) -> None:
+        self.fixed = {"rho_ref": ctx.reference_rate, "tau_v": max(0.02, 4 * ctx.dt_min)}
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [ParamSpec("c", "", -0.5, 0.5, 0.01), ParamSpec("exponent", "", 0.0, 2.0, 0.3)]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        return ctx.grid_search(
+            self, [np.array([c, p]) for p in (0.3, 1.0) for c in (-0.02, 0.02, 0.08)], top=2
+        )
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"c": float(x[0]), "exponent": max(float(x[1]), 0.0), **self.fixed}
+
+    def apply(self, x: Array, signal_in: Array, dt: float, stage: Stage, ctx: Context) -> Array:
+        b = cast(RateDependentWidth, self.block(x, dt))
+        return b.apply(signal_in, stage.u, ctx.anhysteretic(stage))
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        v = self.fixed["rho_ref"]
+        return (
+            f"hysteresis loops widen with the input rate: the branches lie "
+            f"{_pm(100 * x[0], 100 * _sd(cov, 0), '.2g')} % further from the anhysteretic curve at "
+            f"{v:.3g} V/s than in the model, scaling as rate^{_pm(x[1], _sd(cov, 1), '.2f')}; "
+            "identify the "
+            "model at the operating rate or keep the rate-dependence block"
+        )
+
+
+class ModeCandidate(Candidate):
+    """A lightly damped structural mode after the hysteresis."""
+
+    name = "structural_resonance"
+    order = 2
+    physics = "a lightly damped structural mode between the hysteresis and the sensor"
+    block_type = StructuralMode
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [
+            ParamSpec("f_n", "Hz", 1.0, 0.45 / ctx.dt_min, 10.0),
+            ParamSpec("zeta", "", 0.003, 1.0, 0.02),
+            ParamSpec("participation", "", 0.0, 5.0, 0.5),
+        ]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        # scan f_n on a 4 % grid and a few dampings; the participation is linear: project on it
+        prob = ctx._problem
+        fmax = 0.4 / ctx.dt_min
+        grid = np.geomspace(2.0, fmax, int(np.log(fmax / 2.0) / np.log(1.06)) + 1)
+        if prob is None:  # pragma: no cover - only called inside a fit
+            return [np.array([grid[len(grid) // 2], 0.05, 0.1])]
+        found = []
+        for z in (0.015, 0.06, 0.25):
+            for f in grid:
+                blk = StructuralMode(ctx.dt_min, f_n=f, zeta=z, participation=1.0)
+
+                def make(i: int, up: Array, blk: StructuralMode = blk) -> Array:
+                    b = blk if ctx.recs[i].dt == blk.dt else blk.with_dt(ctx.recs[i].dt)
+                    b.reset(float(up[0]))
+                    return b.run(up) - up
+
+                c, gain = prob.scan_linear(make)
+                if c > 0:
+                    found.append((gain, f, z, min(c, 5.0)))
+        found.sort(reverse=True)
+        return [np.array([f, z, c]) for _, f, z, c in found[:2]] or [
+            np.array([grid[len(grid) // 2], 0.05, 0.0])
+        ]
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"f_n": float(x[0]), "zeta": float(x[1]), "participation": float(x[2])}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        return (
+            f"a structural mode at {_pm(x[0], _sd(cov, 0))} Hz (damping ratio "
+            f"{_pm(x[1], _sd(cov, 1), '.2g')}, seen with participation "
+            f"{_pm(x[2], _sd(cov, 2), '.2g')}) rings after fast input changes; keep input content "
+            "well below it or keep the mode block"
+        )
+
+
+class CreepCandidate(Candidate):
+    """Creep: part of each output change arrives over seconds."""
+
+    name = "creep"
+    order = 1
+    physics = "after input changes the output keeps drifting toward its equilibrium (creep)"
+    block_type = Creep
+    TAUS: ClassVar[tuple[float, ...]] = (0.02, 0.2, 2.0, 20.0)
+
+    def prepare(self, ctx: Context) -> None:
+        longest = ctx.longest_duration
+        self.taus = [t for t in self.TAUS if 5 * ctx.dt_min <= t <= max(10 * longest, 0.1)] or [
+            self.TAUS[1]
+        ]
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [ParamSpec("gain", "", 0.5, 1.5, 0.01)] + [
+            ParamSpec(f"c_{t:g}s", "", 0.0, 0.5, 0.01) for t in self.taus
+        ]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        return [np.array([1.0] + [0.0] * len(self.taus))]
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"taus": list(self.taus), "weights": [float(c) for c in x[1:]], "gain": float(x[0])}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        c = x[1:]
+        parts = ", ".join(
+            f"{100 * ci:.2g} % with {t:g} s" for ci, t in zip(c, self.taus) if ci > 1e-4
+        )
+        per_decade = 100 * float(np.mean(c))
+        return (
+            f"after input changes the output keeps creeping: {parts or 'none'} "
+            f"(about {per_decade:.2g} % of a move per decade of time; settled gain {x[0]:.4g}); "
+            "wait for it to settle or keep the creep block"
+        )
+
+
+class GainOffsetCandidate(Candidate):
+    """Calibration error of the output."""
+
+    name = "gain_offset"
+    order = 3
+    physics = "the output scale or zero differs from the model's (sensor calibration)"
+    block_type = GainOffset
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [
+            ParamSpec("gain", "", 0.5, 1.5, 0.01),
+            ParamSpec("offset", "V", -ctx.y_span, ctx.y_span, 1e-3 * ctx.y_span),
+        ]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        return [np.array([1.0, 0.0])]
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"gain": float(x[0]), "offset": float(x[1])}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        return (
+            f"the output scale differs by {_pm(100 * (x[0] - 1), 100 * _sd(cov, 0), '.2g')} % "
+            f"and its zero by {_pm(1e3 * x[1], 1e3 * _sd(cov, 1), '.3g')} mV from the model's: "
+            "recalibrate the "
+            "sensor or re-identify the model"
+        )
+
+
+class SensorNonlinearityCandidate(Candidate):
+    """A static nonlinear curve between the actuator output and the reading."""
+
+    name = "sensor_nonlinearity"
+    order = 0
+    physics = "the sensor reads the output through a static nonlinear curve"
+    block_type = LevelDependentGain
+
+    def prepare(self, ctx: Context) -> None:
+        self.fixed = {
+            "x_c": 0.5 * (ctx.y_lo + ctx.y_hi),
+            "span": max(0.5 * (ctx.y_hi - ctx.y_lo), 1e-12),
+        }
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [ParamSpec("c2", "", -0.3, 0.3, 0.01), ParamSpec("c3", "", -0.3, 0.3, 0.01)]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        return [np.array([0.0, 0.0])]
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"c2": float(x[0]), "c3": float(x[1]), **self.fixed}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        b = cast(LevelDependentGain, self.block(x, 1.0))
+        lo = float(b.slope(ctx.y_lo + 0.1 * (ctx.y_hi - ctx.y_lo)))
+        hi = float(b.slope(ctx.y_hi - 0.1 * (ctx.y_hi - ctx.y_lo)))
+        return (
+            f"the sensor is nonlinear: its sensitivity changes from {lo:.4f} near the bottom to "
+            f"{hi:.4f} "
+            "near the top of the output range relative to the model; calibrate the sensor over its "
+            "range or keep the sensor-curve block"
+        )
+
+
+class NonCongruenceCandidate(Candidate):
+    """Minor loops that depend on the output level: the output feeds back on the relays' input."""
+
+    name = "non_congruence"
+    side = "feedback"
+    physics = "minor loops between the same inputs differ with the output level (not congruent)"
+    block_type = OutputFeedback
+
+    def prepare(self, ctx: Context) -> None:
+        self.fixed = {
+            "y_c": 0.5 * (ctx.y_lo + ctx.y_hi),
+            "span": max(0.5 * (ctx.y_hi - ctx.y_lo), 1e-12),
+        }
+        self.limit = ctx.u_span / max(ctx.y_span, 1e-12)
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        g = self.limit
+        return [
+            ParamSpec("a", "V/V", -g, g, 0.01 * g),
+            ParamSpec("b", "V/V", -g, g, 0.01 * g),
+            ParamSpec("c", "V/V", -g, g, 0.01 * g),
+        ]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        g = self.limit
+        grid = np.geomspace(0.003, 0.3, 6)
+        cands = [np.array([s * f * g, 0.0, 0.0]) for s in (-1, 1) for f in grid]
+        cands += [np.array([0.0, s * 0.01 * g, 0.0]) for s in (-1, 1)]
+        return ctx.grid_search(self, cands, top=1)
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"a": float(x[0]), "b": float(x[1]), "c": float(x[2]), **self.fixed}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        return (
+            f"minor loops are not congruent: the output feeds back on the switching thresholds by "
+            f"{_pm(x[0], _sd(cov, 0))} V per V of output (moving Preisach model; quadratic and "
+            f"cubic terms {_pm(x[1], _sd(cov, 1))} and {_pm(x[2], _sd(cov, 2))} V/V), so loops "
+            "between the same inputs change with the "
+            "output level; "
+            "a classical Preisach model cannot describe this - keep the feedback block"
+        )
+
+
+class DriftCandidate(Candidate):
+    """Sensor offset drifting with time, unrelated to the input."""
+
+    name = "sensor_drift"
+    order = 5
+    physics = "the sensor's offset moves with time, unrelated to the input"
+    block_type = SensorDrift
+
+    def prepare(self, ctx: Context) -> None:
+        self.knot_spacing = ctx.drift_knot_spacing
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [ParamSpec("rate", "V/s", -np.inf, np.inf, 1e-4)]
+
+    def n_params(self, ctx: Context) -> int:
+        return int(sum(ctx.drift_basis(i).shape[1] for i in range(len(ctx.recs))))
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"offset": 0.0, "rate": float(x[0])}
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        return (
+            f"the sensor offset drifts with time, unrelated to the input: mean rate "
+            f"{_pm(1e3 * x[0], 1e3 * _sd(cov, 0))} mV/s; re-zero the sensor before each run, "
+            "control its temperature, or detrend the recordings"
+        )
+
+
+#: The candidate classes by effect name.
+CANDIDATES: dict[str, type[Candidate]] = {
+    c().key: c
+    for c in (
+        RateLagCandidate,
+        RateCandidate,
+        RateWidthCandidate,
+        ModeCandidate,
+        CreepCandidate,
+        DelayCandidate,
+        DriftCandidate,
+        NonCongruenceCandidate,
+        GainOffsetCandidate,
+        SensorNonlinearityCandidate,
+    )
+}
+
+#: Effect names (several candidates may test forms of the same effect).
+EFFECTS: tuple[str, ...] = tuple(dict.fromkeys(c.name for c in CANDIDATES.values()))
+
+
+def default_candidates() -> list[Candidate]:
+    """One instance of every candidate."""
+    return [c() for c in CANDIDATES.values()]

@@ -1,0 +1,700 @@
+"""Concealed-effect test cases: a classical Preisach device plus ONE small effect, or none.
+
+A case is what a user would bring to diagnosis: an FOD identification sweep and several other
+experiments (wiping-out, CML, multi-frequency sine, step-and-hold, filtered noise) of the
+same device, measured with white noise and an ADC's quantisation.  The device is a classical
+Preisach model (by default the thesis's SS15 1 Hz model) augmented by one effect whose size
+is set so that its RMS contribution on the diagnosis experiments is ``effect_size`` times
+the noise standard deviation - invisible on a loop plot.  The sweep carries the effect too, so
+a model identified from it has absorbed part of it, as in the laboratory.
+
+The generators use functional forms that differ from diagnosis's candidates on purpose
+(the candidate fitted for each kind is given in brackets):
+
+* ``rate_dependence`` - the Everett function scaled by the rate: the output blends the
+  model with a *fast* model of the same range whose hysteretic (off-diagonal) relay mass is
+  larger and reversible mass smaller, with weight ``s (1 - exp(-rho / rho_0))`` of the
+  low-passed input rate ``rho = |du/dt|`` [play operator with power-law rate-dependent width
+  on the input];
+* ``structural_resonance`` - a second-order mode driven by the linearly interpolated
+  (first-order hold) Preisach output, solved exactly in continuous time, participation ``s``
+  [the same physics discretised exactly under a zero-order hold];
+* ``creep`` - the logarithmic creep law: every output move ``dy`` adds
+  ``s dy log10(1 + t / t_0)`` afterwards (a convolution; never settles) [a settled gain and
+  first-order lags at 0.1, 1 and 10 s];
+* ``delay`` - a first-order measurement low-pass of time constant ``s`` acting on the
+  continuous (linearly interpolated) output, so its delay at low frequencies is ``s`` [a pure,
+  fractional delay];
+* ``sensor_drift`` - a slow random offset per recording: a ramp plus three sinusoids of
+  random periods (8-60 s) and phases, amplitude ``s`` [a per-recording cubic spline in time];
+* ``non_congruence`` - a moving Preisach model with saturating feedback
+  ``u_eff[k] = u[k] + s Y tanh((y[k-1] - y_c) / Y)``, ``y_c`` the mid output and ``Y`` a
+  quarter of the output span [output feedback with a linear and a quadratic term].
+
+``kind="none"`` makes the null case: the same experiments without any effect.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Union
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from ..model import PreisachModel, State
+from ..noise import uniform_filtered_noise
+from ..recording import Recording
+from ..waveforms import cml_input, fod_sweep, legs, wiping_out_input
+
+__all__ = ["EFFECT_KINDS", "Case", "case_inputs", "identify_fod", "make_case"]
+
+Array = NDArray[np.float64]
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Effect kinds the generator can conceal (``"none"`` is the null case).
+EFFECT_KINDS: tuple[str, ...] = (
+    "rate_dependence",
+    "structural_resonance",
+    "creep",
+    "delay",
+    "sensor_drift",
+    "non_congruence",
+)
+
+
+# ----------------------------------------------------------------------------------------
+# experiments
+# ----------------------------------------------------------------------------------------
+def case_inputs(
+    scale: float = 1.0,
+    *,
+    rng: np.random.Generator,
+    u_min: float = -100.0,
+    u_max: float = 100.0,
+    dt: float = 1e-3,
+) -> tuple[tuple[str, Array], list[tuple[str, Array]]]:
+    """Identification sweep and diagnosis experiments (name, input in V) for one case.
+
+    ``scale = 1`` gives a 20 s FOD sweep (21 levels at 1 Hz) and five experiments of 3-12 s;
+    smaller scales shorten everything (``scale = 0.35`` is a quick test case).
+    """
+    span = u_max - u_min
+    n_lev = 21 if scale >= 0.75 else 11
+    f_id = 1.0 if scale >= 0.75 else max(1.0, 0.8 / scale)
+    sweep = fod_sweep(np.linspace(u_min, u_max, n_lev), frequency=f_id, sample_time=dt).u
+    exps: list[tuple[str, Array]] = []
+    # triangle legs: sharp reversals tell a lag before the hysteresis (which lowers the extrema
+    # the relays see) from a delay after it
+    exps.append(
+        ("wiping_out", wiping_out_input(2.0, u_min=u_min, sample_time=dt, shape="triangle").u)
+    )
+    exps.append(
+        (
+            "cml",
+            cml_input(
+                2.0,
+                u_min=u_min,
+                sample_time=dt,
+                loop=(u_min + 0.5 * span, u_min + 0.75 * span),
+                peak=u_max,
+            ).u,
+        )
+    )
+    # minor-loop ladder: the same small loop at five input offsets, reached once from below
+    # and once from above (so at two output levels each): congruency under test
+    pts = [u_min]
+    for direction in (1, -1):
+        offs = np.linspace(u_min + 0.2 * span, u_max - 0.2 * span, 5)[::direction]
+        for o in offs:
+            pts.append(float(o))
+            for _ in range(2 if scale >= 0.75 else 1):
+                pts += [float(o + 0.08 * span * direction), float(o)]
+        pts.append(u_max if direction > 0 else u_min)
+    exps.append(("minor_loops", legs(pts, 0.125, sample_time=dt).u))
+    # multi-frequency sine, entered from u_min by one cosine leg
+    T = 10.0 * scale
+    t = np.arange(int(round(T / dt))) * dt
+    fr = np.array([0.7, 2.3, 5.1]) * rng.uniform(0.9, 1.1, 3)
+    ph = rng.uniform(0, 2 * np.pi, 3)
+    amp = np.array([0.25, 0.12, 0.05]) * span
+    ms = (amp[:, None] * np.sin(2 * np.pi * fr[:, None] * t + ph[:, None])).sum(axis=0)
+    ms = np.clip(ms, u_min, u_max)
+    lead = legs([u_min, ms[0]], 0.3, sample_time=dt).u
+    exps.append(("multisine", np.concatenate([lead, ms[1:]])))
+    # step and hold: holds of 0.4-1.2 s between fast steps (40 ms cosine ramps, which still
+    # excite a structural mode but keep its ringing within the sensor's range and the slope
+    # within the rig's 10 kV/s slew limit)
+    pts, durs = [u_min], []
+    total = 0.0
+    while total < T:
+        pts.append(float(rng.uniform(u_min + 0.05 * span, u_max - 0.05 * span)))
+        hold = float(rng.uniform(0.4, 1.2))
+        durs.append(0.04)
+        pts.append(pts[-1])
+        durs.append(hold)
+        total += hold + 0.04
+    exps.append(("step_hold", legs(pts, durs, sample_time=dt).u))
+    # filtered noise on a slow offset ramp
+    noise = uniform_filtered_noise(T, 0.2 * span, sample_time=dt, seed=int(rng.integers(2**31)))
+    off = u_min + span * (0.25 + 0.5 * np.linspace(0, 1, noise.size))
+    un = np.clip(off + noise, u_min, u_max)
+    lead = legs([u_min, un[0]], 0.3, sample_time=dt).u
+    exps.append(("noise", np.concatenate([lead, un[1:]])))
+    return ("fod_sweep", sweep), exps
+
+
+# ----------------------------------------------------------------------------------------
+# truths (the device's physics)
+# ----------------------------------------------------------------------------------------
+def _fast_model(model: PreisachModel) -> PreisachModel:
+    """Same range and saturation outputs, hysteretic mass up and reversible mass halved."""
+    w = model.cell_weights()
+    diag = np.diag(np.diag(w))
+    off = np.tril(w, -1)
+    kappa = 0.5 * diag.sum() / max(off.sum(), 1e-300)
+    return PreisachModel.from_weights(
+        model.levels, off * (1 + kappa) + 0.5 * diag, y_min=model.y_min
+    )
+
+
+def _lowpass(x: Array, tau: float, dt: float) -> Array:
+    e = math.exp(-dt / tau)
+    y, _ = signal.lfilter([1 - e], [1, -e], x, zi=[e * x[0]])
+    return y
+
+
+def _mode_foh(x: Array, fn: float, zeta: float, dt: float) -> Array:
+    """Exact continuous response of the mode to the linearly interpolated input (FOH)."""
+    wn = 2 * math.pi * fn
+    sys = signal.lti([wn * wn], [1.0, 2 * zeta * wn, wn * wn])
+    t = np.arange(x.size) * dt
+    # start at rest at x[0]: simulate the deviation from x[0]
+    _, y, _ = signal.lsim(sys, x - x[0], t, interp=True)
+    return np.asarray(y) + x[0]
+
+
+def _lag_foh(x: Array, tau: float, dt: float) -> Array:
+    """First-order lag of the linearly interpolated signal, exact (its delay is ``tau``)."""
+    e = math.exp(-dt / tau)
+    # exact recursion for a piecewise-linear input: z_k = e z_{k-1} + b0 x_k + b1 x_{k-1}
+    q = tau / dt * (1 - e)
+    b0, b1 = 1 - q, q - e
+    y, _ = signal.lfilter([b0, b1], [1.0, -e], x, zi=[(1 - b0) * x[0]])
+    return y
+
+
+def _log_creep(y: Array, t0: float, dt: float) -> Array:
+    dy = np.diff(y, prepend=y[0])
+    kern = np.log10(1 + np.arange(y.size) * dt / t0)
+    return signal.fftconvolve(dy, kern)[: y.size]
+
+
+def _moving(
+    model: PreisachModel, u: Array, state: State, a: float, yc: float, span: float
+) -> Array:
+    """Moving model with saturating feedback ``u_eff = u + a span tanh((y_prev - yc) / span)``."""
+    sim = model.simulator(state)
+    y = np.empty_like(u)
+    prev = model.readout(state)
+    lo, hi = model.u_min, model.u_max
+    step = sim.step
+    for k in range(u.size):
+        ue = min(max(u[k] + a * span * math.tanh((prev - yc) / span), lo), hi)
+        prev = step(ue)
+        y[k] = prev
+    return y
+
+
+@dataclass
+class _Truth:
+    kind: str
+    model: PreisachModel
+    params: dict[str, float]
+    dt: float
+    rng_seed: int
+    fast: PreisachModel | None = None
+
+    def simulate(self, u: Array, strength: float, index: int) -> Array:
+        m, p, dt = self.model, self.params, self.dt
+        s0 = m.negative_saturation()
+        if self.kind == "non_congruence" and strength != 0:
+            return _moving(
+                m, u, s0, strength, 0.5 * (m.y_min + m.y_max), 0.25 * (m.y_max - m.y_min)
+            )
+        y = m.simulate(u, s0, sample_time=dt).output
+        if self.kind == "none" or strength == 0:
+            return y
+        if self.kind == "rate_dependence":
+            assert self.fast is not None
+            yf = self.fast.simulate(u, s0, sample_time=dt).output
+            rho = _lowpass(np.abs(np.gradient(u, dt)), p["rho_tau"], dt)
+            w = strength * (1 - np.exp(-rho / p["rho_0"]))
+            return y + w * (yf - y)
+        if self.kind == "structural_resonance":
+            return y + strength * (_mode_foh(y, p["f_n"], p["zeta"], dt) - y)
+        if self.kind == "creep":
+            return y + strength * _log_creep(y, p["t0"], dt)
+        if self.kind == "delay":
+            return _lag_foh(y, strength, dt)
+        if self.kind == "sensor_drift":
+            rng = np.random.default_rng(self.rng_seed + 7919 * index)
+            t = np.arange(u.size) * dt
+            d = rng.uniform(-1, 1) * t / max(t[-1], dt)
+            for _ in range(3):
+                per = rng.uniform(8.0, 60.0)
+                d = d + rng.uniform(0.3, 1.0) * np.sin(
+                    2 * np.pi * t / per + rng.uniform(0, 2 * np.pi)
+                )
+            return y + strength * d
+        raise ValueError(f"kind: unknown effect {self.kind!r}")  # pragma: no cover
+
+
+def _truth_params(kind: str, rng: np.random.Generator) -> dict[str, float]:
+    if kind == "rate_dependence":
+        return {"rho_0": float(rng.uniform(150.0, 600.0)), "rho_tau": 0.02}
+    if kind == "structural_resonance":
+        return {"f_n": float(rng.uniform(25.0, 60.0)), "zeta": float(rng.uniform(0.01, 0.05))}
+    if kind == "creep":
+        return {"t0": float(rng.uniform(0.01, 0.1))}
+    if kind == "sensor_drift":
+        return {}
+    if kind in ("delay", "non_congruence", "none"):
+        return {"sign": float(rng.choice([-1.0, 1.0]))} if kind == "non_congruence" else {}
+    raise ValueError(f"kind: expected one of {EFFECT_KINDS + ('none',)}, got {kind!r}")
+
+
+# ----------------------------------------------------------------------------------------
+# cases
+# ----------------------------------------------------------------------------------------
+@dataclass
+class Case:
+    """A concealed-effect case: identification sweep, diagnosis recordings and the truth."""
+
+    kind: str
+    identification: Recording
+    recordings: list[Recording]
+    truth: dict[str, Any] = field(default_factory=dict)
+
+    def identify(self, levels: int | None = None) -> PreisachModel:
+        """Model identified from the sweep (Mayergoyz, FOD grid; see :func:`identify_fod`)."""
+        return identify_fod(self.identification, levels)
+
+    def save(self, folder: PathLike) -> None:
+        """Write ``identification.npz``, one ``<name>.npz`` per experiment and ``truth.json``."""
+        d = Path(folder)
+        d.mkdir(parents=True, exist_ok=True)
+        self.identification.save(d / "identification.npz")
+        names: list[str] = []
+        for r in self.recordings:
+            nm = str(r.metadata.get("experiment", f"rec{len(names)}"))
+            r.save(d / f"{nm}.npz")
+            names.append(nm)
+        (d / "truth.json").write_text(
+            json.dumps({"kind": self.kind, "recordings": names, **self.truth}, indent=2) + "\n"
+        )
+
+    @classmethod
+    def load(cls, folder: PathLike) -> Case:
+        """Read a case folder written by :meth:`save`."""
+        d = Path(folder)
+        info = json.loads((d / "truth.json").read_text())
+        recs = [Recording.load(d / f"{n}.npz") for n in info.pop("recordings")]
+        kind = info.pop("kind")
+        return cls(kind, Recording.load(d / "identification.npz"), recs, info)
+
+
+def identify_fod(sweep: Recording, levels: int | None = None) -> PreisachModel:
+    """Mayergoyz identification from an FOD sweep recording (FOD finder + ``from_fod_grid``)."""
+    from ..identify import find_fod_curves
+
+    lv = None
+    if levels is not None:
+        lv = np.linspace(float(sweep.u.min()), float(sweep.u.max()), int(levels))
+    fd = find_fod_curves(sweep.t, sweep.u, sweep.y, lv)
+    return PreisachModel.from_fod_grid(fd.levels, fd.y_grid, name="identified from FOD sweep")
+
+
+def _quantise(
+    y: Array, rng: np.random.Generator, sigma: float, bits: int, rng_v: tuple[float, float]
+) -> Array:
+    lsb = (rng_v[1] - rng_v[0]) / 2**bits
+    yn = y + rng.normal(0.0, sigma, y.size)
+    return np.clip(np.round(yn / lsb) * lsb, rng_v[0], rng_v[1] - lsb)
+
+
+def make_case(
+    kind: str,
+    *,
+    effect_size: float = 3.0,
+    seed: int = 0,
+    sigma: float = 1e-3,
+    adc_bits: int = 14,
+    adc_range: tuple[float, float] = (-10.0, 10.0),
+    scale: float = 1.0,
+    model: PreisachModel | None = None,
+    dt: float = 1e-3,
+    generator: str = "own",
+    min_duration: float = 0.0,
+) -> Case:
+    """Build one case.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`EFFECT_KINDS` or ``"none"``.
+    effect_size : float
+        Size of the effect in units of the noise standard deviation ``sigma``: the RMS (on the
+        diagnosis experiments) of the part of the effect that no classical Preisach model can
+        absorb - the excess residual of the best least-squares Preisach fit (41 levels,
+        fitted to the sweep and all experiments, clean data) over the same fit without the
+        effect.  The raw RMS of the effect (``truth["effect_rms"]``) is larger: the rest is
+        absorbed by any identification.  Ignored for ``"none"``.
+    seed : int
+        Seeds the effect's parameters, the experiments and the noise.
+    sigma : float
+        White measurement noise standard deviation (V).
+    adc_bits, adc_range : int, (float, float)
+        Quantisation of the measured output: ``adc_bits`` over ``adc_range`` (V).
+    scale : float
+        Duration scale of the experiments (1: 20 s sweep, experiments up to 12 s).
+    model : PreisachModel, optional
+        The device's classical part; default the built-in ``ss15-1hz``.
+    dt : float
+        Sample time (s).
+    min_duration : float
+        Repeat every experiment's input until it lasts at least this long (s).
+    generator : {"own", "rig"}
+        ``"own"``: this module's truths (forms unlike the candidates, see the module
+        docstring).  ``"rig"``: the virtual SS15 rig of :mod:`preisach.daq` with its physics
+        blocks (:mod:`preisach.blocks`): ``input_lag`` (rate dependence), ``structural_mode``,
+        ``creep``, ``delay``/``moving_average``, ``offset_drift``, the moving Preisach stage
+        (non-congruence); measured through the rig's ADC (noise ``sigma``, ``adc_bits`` over
+        its input channel), ``adc_range`` is then unused.  For the rig's delay, whose
+        blocks only delay by whole or half samples, the option closest to ``effect_size`` is
+        taken; the rig's structural mode has full participation, so its size follows from its
+        random frequency (80-200 Hz: lower modes ring the sensor out of its range on these
+        experiments) and damping (0.02-0.08); the rig's moving-model gain is capped at 3 V/V
+        (a linear moving model is almost entirely absorbed by a re-identified classical
+        model: at that gain the rest is below 2 x the noise).  The size actually reached is
+        stored in ``truth["effect_size"]``.
+
+    Returns
+    -------
+    Case
+        ``truth`` holds the kind, the generator's parameters, the strength, the effect's
+        raw RMS and its unexplainable RMS (V) on the diagnosis experiments.
+
+    """
+    if kind != "none" and kind not in EFFECT_KINDS:
+        raise ValueError(f"kind: expected one of {EFFECT_KINDS + ('none',)}, got {kind!r}")
+    if not (effect_size > 0 or kind == "none"):
+        raise ValueError(f"effect_size: must be > 0, got {effect_size!r}")
+    if generator not in ("own", "rig"):
+        raise ValueError(f"generator: expected 'own' or 'rig', got {generator!r}")
+    rng = np.random.default_rng(seed)
+    dev = model if model is not None else PreisachModel.builtin("ss15-1hz", levels=101)
+    truth: _Truth | _RigTruth
+    params: dict[str, Any]
+    if generator == "rig":
+        truth = _RigTruth(kind, dev, _rig_params(kind, rng), dt, int(rng.integers(2**31)))
+        params = truth.params
+    else:
+        params = _truth_params(kind, rng)
+        truth = _Truth(
+            kind,
+            dev,
+            params,
+            dt,
+            int(rng.integers(2**31)),
+            _fast_model(dev) if kind == "rate_dependence" else None,
+        )
+    (sw_name, sw_u), exps = case_inputs(scale, rng=rng, u_min=dev.u_min, u_max=dev.u_max, dt=dt)
+    if min_duration > 0:
+        exps = [(n, np.tile(u, int(math.ceil(min_duration / (u.size * dt))))) for n, u in exps]
+    all_u = [sw_u] + [u for _, u in exps]
+    clean = [truth.simulate(u, 0.0, i) for i, u in enumerate(all_u)]
+    fit = _ClassicalFit(dev, all_u)
+    base_mse = fit.residual_mse(clean)
+
+    def effect_rms(s: float) -> float:
+        d = np.concatenate(
+            [truth.simulate(u, s, i) - c for i, (u, c) in enumerate(zip(all_u, clean)) if i > 0]
+        )
+        return float(np.sqrt(np.mean(d * d)))
+
+    def unexplained_rms(s: float) -> float:
+        ys = [truth.simulate(u, s, i) for i, u in enumerate(all_u)]
+        return float(np.sqrt(max(fit.residual_mse(ys) - base_mse, 0.0)))
+
+    strength = 0.0
+    rms = unexpl = 0.0
+    if kind != "none":
+        target = effect_size * sigma
+        sign = params.get("sign", 1.0)
+        if isinstance(truth, _RigTruth) and kind == "structural_resonance":
+            strength = 1.0  # the rig's mode has full participation: its size is what it is
+        elif isinstance(truth, _RigTruth) and kind == "delay":
+            # whole/half-sample delays only: take the option closest to the target (log scale)
+            sizes = [unexplained_rms(float(k + 1)) for k in range(len(_RIG_DELAYS))]
+            params = {**params, "option_sizes": [v / sigma for v in sizes]}
+            k = int(np.argmin([abs(math.log(max(v, 1e-300) / target)) for v in sizes]))
+            strength = float(k + 1)
+        else:
+            start = _RIG_START[kind] if isinstance(truth, _RigTruth) else _START[kind]
+            strength = _solve_strength(lambda s: unexplained_rms(sign * s), target, start)
+            if isinstance(truth, _RigTruth) and kind in _RIG_MAX:
+                strength = min(strength, _RIG_MAX[kind])
+            strength *= sign
+        rms, unexpl = effect_rms(strength), unexplained_rms(strength)
+    recs = []
+    for i, (name, u) in enumerate([(sw_name, sw_u), *exps]):
+        if isinstance(truth, _RigTruth):
+            ym = truth.measure(u, strength, i, sigma, adc_bits, int(rng.integers(2**31)))
+        else:
+            ym = _quantise(truth.simulate(u, strength, i), rng, sigma, adc_bits, adc_range)
+        recs.append(
+            Recording.from_arrays(
+                u=u,
+                y=ym,
+                sample_time=dt,
+                experiment=name,
+                metadata={"initial_state": "negative_saturation"},
+            )
+        )
+    if isinstance(truth, _RigTruth):
+        params = {**params, **truth.describe(strength)}
+    info = {
+        "generator": generator,
+        "strength": strength,
+        "params": params,
+        "effect_rms": rms,
+        "unexplained_rms": unexpl,
+        "effect_size": unexpl / sigma if kind != "none" else 0.0,
+        "target_size": effect_size,
+        "sigma": sigma,
+        "seed": seed,
+        "adc_bits": adc_bits,
+        "scale": scale,
+    }
+    return Case(kind, recs[0], recs[1:], info)
+
+
+# ----------------------------------------------------------------------------------------
+# the virtual rig's physics blocks as truth
+# ----------------------------------------------------------------------------------------
+_RIG_DELAYS: tuple[dict[str, Any], ...] = (
+    {"kind": "moving_average", "length": 2},
+    {"kind": "delay", "samples": 1},
+    {"kind": "moving_average", "length": 3},
+    {"kind": "moving_average", "length": 4},
+    {"kind": "delay", "samples": 2},
+    {"kind": "moving_average", "length": 6},
+    {"kind": "delay", "samples": 3},
+    {"kind": "moving_average", "length": 10},
+)
+_RIG_START = {"rate_dependence": 1e-4, "creep": 1e-3, "sensor_drift": 1e-3, "non_congruence": 0.01}
+# physically plausible ceilings: a linear moving model is almost entirely absorbed by a
+# re-identified classical model, so reaching the target size would need absurd feedback gains
+_RIG_MAX = {"non_congruence": 3.0}
+_LEAD_IN = (
+    0.3  # s held at u_min before each recording (after a ramp down from the rig's reset at 0 V)
+)
+
+
+def _rig_params(kind: str, rng: np.random.Generator) -> dict[str, float]:
+    if kind == "structural_resonance":
+        return {
+            "frequency": float(rng.uniform(80.0, 200.0)),
+            "damping": float(rng.uniform(0.02, 0.08)),
+        }
+    if kind == "creep":
+        return {
+            "tau_min": float(10 ** rng.uniform(-2, -1)),
+            "tau_max": float(10 ** rng.uniform(1, 2)),
+        }
+    if kind == "sensor_drift":
+        return {"rate_share": float(rng.uniform(-1, 1)), "sigma_share": float(rng.uniform(0.2, 1))}
+    if kind == "non_congruence":
+        return {"sign": float(rng.choice([-1.0, 1.0]))}
+    if kind in ("rate_dependence", "delay", "none"):
+        return {}
+    raise ValueError(f"kind: expected one of {EFFECT_KINDS + ('none',)}, got {kind!r}")
+
+
+@dataclass
+class _RigTruth:
+    kind: str
+    model: PreisachModel
+    params: dict[str, float]
+    dt: float
+    rng_seed: int
+
+    def blocks(
+        self, strength: float, index: int
+    ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], float]:
+        p, k = self.params, self.kind
+        if k == "none" or strength == 0:
+            return [], [], 0.0
+        if k == "rate_dependence":
+            return [{"kind": "input_lag", "time_constant": strength}], [], 0.0
+        if k == "structural_resonance":  # full participation: the size follows from f_n and zeta
+            return (
+                [],
+                [{"kind": "structural_mode", "frequency": p["frequency"], "damping": p["damping"]}],
+                0.0,
+            )
+        if k == "creep":
+            return (
+                [],
+                [
+                    {
+                        "kind": "creep",
+                        "rate": strength,
+                        "tau_min": p["tau_min"],
+                        "tau_max": p["tau_max"],
+                    }
+                ],
+                0.0,
+            )
+        if k == "delay":  # strength k >= 1 picks the k-th option
+            return [], [dict(_RIG_DELAYS[int(strength) - 1])], 0.0
+        if k == "sensor_drift":
+            return (
+                [],
+                [
+                    {
+                        "kind": "offset_drift",
+                        "rate": strength * p["rate_share"],
+                        "sigma": strength * p["sigma_share"],
+                        "seed": self.rng_seed + 7919 * index,
+                    }
+                ],
+                0.0,
+            )
+        if k == "non_congruence":
+            return [], [], strength
+        raise ValueError(f"kind: unknown effect {k!r}")  # pragma: no cover
+
+    def describe(self, strength: float) -> dict[str, Any]:
+        ins, outs, g = self.blocks(strength, 0)
+        d: dict[str, Any] = {
+            "input_blocks": ins,
+            "output_blocks": [{k: v for k, v in b.items() if k != "seed"} for b in outs],
+        }
+        if g:
+            d["moving_gain"] = g
+        return d
+
+    def simulate(self, u: Array, strength: float, index: int) -> Array:
+        """Clean plant output (V): the rig's block chain without the DAQ."""
+        from ..blocks import BlockChain, make_block, preisach_stage
+
+        ins, outs, g = self.blocks(strength, index)
+        m = self.model
+        chain = BlockChain(
+            [
+                *(make_block(b, self.dt) for b in ins),
+                preisach_stage(m, m.anhysteretic_state(), self.dt, g),
+                *(make_block(b, self.dt) for b in outs),
+            ]
+        )
+        lead = self._lead_in()
+        chain.reset(0.0)
+        return np.asarray(chain.run(np.concatenate([lead, u])))[lead.size :]
+
+    def _lead_in(self) -> Array:
+        """From rest at 0 V (the rig's reset) down to u_min in 0.5 s, then held for 0.3 s."""
+        m = self.model
+        down = legs([0.0, m.u_min], 0.5, sample_time=self.dt).u
+        return np.concatenate([down, np.full(int(round(_LEAD_IN / self.dt)), m.u_min)])
+
+    def measure(
+        self, u: Array, strength: float, index: int, sigma: float, bits: int, seed: int
+    ) -> Array:
+        """Output (V) measured through the virtual rig (DAC, amplifier, plant, noisy ADC)."""
+        from ..daq import DevicePlant, virtual_ss15
+
+        ins, outs, g = self.blocks(strength, index)
+        m = self.model
+        rig = virtual_ss15(
+            m,
+            "anhysteretic",
+            sample_time=self.dt,
+            input_blocks=ins,
+            output_blocks=outs,
+            moving_gain=g,
+            adc_noise=sigma,
+            adc_bits=bits,
+            seed=seed,
+        )
+        lead = self._lead_in()
+        plant = DevicePlant(rig)
+        try:
+            return np.asarray(plant.run_open_loop(np.concatenate([lead, u])))[lead.size :]
+        finally:
+            if plant._tmp is not None:
+                plant._tmp.cleanup()
+
+
+class _ClassicalFit:
+    """Best classical Preisach model (least squares, 41 levels) for outputs of fixed inputs."""
+
+    def __init__(self, model: PreisachModel, inputs: list[Array], n_levels: int = 41) -> None:
+        import scipy.sparse as sp
+
+        from .. import _core
+
+        lv = np.linspace(model.u_min, model.u_max, n_levels)
+        p = n_levels * (n_levels - 1) // 2 + 1
+        self.R = []
+        for u in inputs:
+            indptr, idx, data, _ = _core.regressor_rows(lv, u, model.negative_saturation(), "clamp")
+            self.R.append(sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(u.size, p)))
+        N = sum((R.T @ R).toarray() for R in self.R)
+        N[np.diag_indices(p)] += 1e-9 * np.trace(N) / p
+        from scipy import linalg
+
+        self._cho = linalg.cho_factor(N)
+
+    def residual_mse(self, outputs: list[Array]) -> float:
+        """Mean-square residual (V^2) on all but the first input (the sweep) after the joint fit."""
+        from scipy import linalg
+
+        rhs = sum(R.T @ y for R, y in zip(self.R, outputs))
+        theta = linalg.cho_solve(self._cho, rhs)
+        res = np.concatenate([y - R @ theta for R, y in zip(self.R[1:], outputs[1:])])
+        return float(np.mean(res * res))
+
+
+_START = {
+    "rate_dependence": 0.05,
+    "structural_resonance": 0.1,
+    "creep": 0.002,
+    "delay": 2e-4,
+    "sensor_drift": 2e-3,
+    "non_congruence": 0.5,
+}
+
+
+def _solve_strength(f: Callable[[float], float], target: float, s0: float) -> float:
+    """Positive ``s`` with ``f(s) = target`` for an increasing ``f`` (bracketing on a log scale)."""
+    lo, hi = 0.0, s0
+    for _ in range(40):
+        if f(hi) >= target:
+            break
+        lo, hi = hi, hi * 3
+    for _ in range(30):
+        mid = 0.5 * (lo + hi) if lo == 0 else math.sqrt(lo * hi)
+        if f(mid) < target:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo < 2e-3 * hi:
+            break
+    return 0.5 * (lo + hi)

@@ -1,0 +1,378 @@
+"""``diagnose(model, recordings)``: locate, name and model what a Preisach model leaves out."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Sequence
+from typing import Callable, Union
+
+import numpy as np
+
+from ..model import PreisachModel, State
+from ..recording import Recording
+from .augmented import AugmentedModel
+from .blocks import Block
+from .candidates import CANDIDATES, Candidate, DriftCandidate
+from .engine import Chain, Context, FittedEffect, noise_sigma, prepare_recordings, run_selection
+from .locate import analyse_residuals
+from .report import DiagnosisReport, EffectReport, candidate_table, where_of
+
+__all__ = ["diagnose"]
+
+RecordingLike = Union[Recording, str, "os.PathLike[str]"]
+
+
+def _load(recs: Sequence[RecordingLike] | Recording | None) -> list[Recording]:
+    if recs is None:
+        return []
+    if isinstance(recs, Recording):
+        return [recs]
+    out = []
+    for r in recs:
+        if isinstance(r, Recording):
+            out.append(r)
+        elif isinstance(r, (str, os.PathLike)):
+            rec = Recording.load(r)
+            if not any(
+                isinstance(rec.metadata.get(k), str) and rec.metadata.get(k)
+                for k in ("name", "experiment")
+            ):
+                rec.metadata["name"] = os.path.splitext(os.path.basename(os.fspath(r)))[0]
+            out.append(rec)
+        else:
+            raise TypeError(
+                f"recordings: expected Recording objects or file paths, got {type(r).__name__}"
+            )
+    return out
+
+
+def diagnose(
+    model: PreisachModel,
+    recordings: Sequence[RecordingLike] | Recording,
+    *,
+    identification: Sequence[RecordingLike] | Recording | None = None,
+    candidates: Sequence[str | Candidate] | None = None,
+    initial_states: Sequence[State | str | None] | None = None,
+    refit: bool | None = None,
+    refit_levels: int = 21,
+    cv: str = "auto",
+    block_length: float | None = None,
+    min_gain: float = 0.10,
+    noise_factor: float = 1.0,
+    alpha: float = 0.01,
+    max_effects: int = 3,
+    sigma: float | None = None,
+    max_delay: float | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> DiagnosisReport:
+    """Find where a model and recordings disagree, name the missing physics and model it.
+
+    Every recording is simulated through ``model``; the residual ``y_meas - y_sim`` is
+    analysed (where in time and in which recording, over which input range and direction,
+    in which frequency band, and how it follows the input rate, the time since the last
+    reversal or move, the output level and the absolute time).  Candidate explanations -
+    physics blocks with few parameters around the Preisach operator - are then fitted on
+    training data and scored on held-out data in a greedy forward selection that keeps an
+    effect only when it lowers the held-out error clearly beyond what the noise allows (see
+    :mod:`preisach.diagnose.engine`).
+
+    Parameters
+    ----------
+    model : PreisachModel
+        The classical model to diagnose (identified, or built in).  Volts in, volts out.
+    recordings : sequence of Recording or path
+        Recordings of the same device, preferably of experiments other than the
+        identification (wiping-out, CML, multi-frequency sine, step-and-hold, noise).
+    identification : Recording, path or sequence of them, optional
+        The recording(s) the model was identified from (e.g. the FOD sweep).  They are used
+        for training only; with them the Preisach weights are refitted together with every
+        candidate (the sweep carries the effect too, so the identified model has absorbed
+        part of it).
+    candidates : sequence of str or Candidate, optional
+        Which explanations to test; default all of :data:`~preisach.diagnose.CANDIDATES`:
+        ``rate_dependence``, ``structural_resonance``, ``creep``, ``delay``,
+        ``sensor_drift``, ``non_congruence``, ``gain_offset``.
+    initial_states : sequence, optional
+        One per recording: a :class:`~preisach.State` or ``"negative_saturation"``,
+        ``"positive_saturation"``, ``"anhysteretic"``, ``"unknown"``, or None.  Default
+        (None): the recording's ``initial_state`` metadata, else negative/positive
+        saturation when the input starts within 1 % of the range ends, else unknown
+        (anhysteretic state, and the samples before the input has visited both its
+        extremes are not scored).
+    refit : bool, optional
+        Refit the Preisach weights with every candidate (default: when ``identification`` is
+        given).
+    refit_levels : int
+        Grid of the refitted weights when the model has more than 41 levels.
+    cv : {"auto", "blocks", "recordings"}
+        Held-out scheme: alternating time blocks within every recording (``"auto"`` and
+        ``"blocks"``) or groups of whole recordings held out (``"recordings"``, stricter: an
+        effect must carry over to experiments it was not fitted on).
+    block_length : float, optional
+        Length (s) of the time blocks (units of the significance test, and the folds of the
+        ``"blocks"`` scheme); default a tenth of the longest recording, within [0.25, 2] s.
+    min_gain : float
+        Smallest relative reduction of the held-out RMSE for an effect to be kept (default
+        0.10 = 10 %).
+    noise_factor : float
+        An effect must reduce the held-out mean-square error by at least this multiple of
+        the noise variance (default 1: the effect is at least as large as the noise).
+    alpha : float
+        Level of the one-sided sign-flip test over held-out blocks (default 0.01).
+    max_effects : int
+        Most effects kept (default 3).
+    sigma : float, optional
+        Noise standard deviation (V) when known; default estimated from the data.
+    max_delay : float, optional
+        Largest delay (s) the ``delay`` candidate may take; default max(50 ms, 10 samples).
+    progress : callable, optional
+        Called with progress lines (e.g. ``print``).
+
+    Returns
+    -------
+    DiagnosisReport
+        ``verdict`` (the most important effect or ``"none"``), the kept effects with
+        evidence, where they act, parameters with uncertainties and one-line statements,
+        RMSE before and after, residual analyses, the candidate table, ``.plot()``,
+        ``.to_json()`` and the augmented ``.model``.
+
+    """
+    t_start = time.perf_counter()
+    if not isinstance(model, PreisachModel):
+        raise TypeError(f"model: expected a PreisachModel, got {type(model).__name__}")
+    for name, v in (("min_gain", min_gain), ("noise_factor", noise_factor)):
+        if not (np.isfinite(v) and v >= 0):
+            raise ValueError(f"{name}: must be a finite number >= 0, got {v!r}")
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha: must lie in (0, 1), got {alpha!r}")
+    if int(max_effects) < 0:
+        raise ValueError(f"max_effects: must be >= 0, got {max_effects!r}")
+    recs_in = _load(recordings)
+    ident_in = _load(identification)
+    cands: list[Candidate] = []
+    for c in candidates if candidates is not None else list(CANDIDATES):
+        if isinstance(c, Candidate):
+            cands.append(c)
+        elif isinstance(c, str) and c in CANDIDATES:
+            cands.append(CANDIDATES[c]())
+        elif isinstance(c, str) and any(v().name == c for v in CANDIDATES.values()):
+            cands += [v() for v in CANDIDATES.values() if v().name == c]
+        else:
+            raise ValueError(
+                f"candidates: unknown candidate {c!r}; choose from {sorted(CANDIDATES)}"
+            )
+    if len({c.key for c in cands}) != len(cands):
+        raise ValueError("candidates: each candidate may appear only once")
+    do_refit = bool(ident_in) if refit is None else bool(refit)
+
+    recs = prepare_recordings(
+        model,
+        recs_in,
+        initial_states=initial_states,
+        block_length=block_length,
+        identification=ident_in,
+    )
+    ctx = Context(model, recs, max_delay=max_delay, refit=do_refit, refit_levels=refit_levels)
+    diag = ctx.diag
+    given = Chain(ctx.given)
+    pred0 = ctx.predict(given)
+    res0 = [np.where(r.usable, r.y - p, np.nan) for r, p in zip(recs, pred0)]
+    if sigma is None:
+        sig = np.array(
+            [noise_sigma(np.nan_to_num(res0[i][recs[i].usable])) for i in range(len(recs))], float
+        )
+        n = np.array([int(r.usable.sum()) for r in recs], float)
+        ok = np.isfinite(sig)
+        sigma_hat = float(np.sqrt(np.average(sig[ok] ** 2, weights=n[ok]))) if ok.any() else 0.0
+    else:
+        sigma_hat = float(sigma)
+        if not (np.isfinite(sigma_hat) and sigma_hat >= 0):
+            raise ValueError(f"sigma: must be a finite number >= 0 (V), got {sigma!r}")
+    if progress:
+        progress(
+            f"{len(diag)} recordings ({len(recs) - len(diag)} for identification), "
+            f"{sum(r.n for r in recs)} samples; noise {1e3 * sigma_hat:.3g} mV"
+        )
+
+    sel = run_selection(
+        ctx,
+        cands,
+        sigma=sigma_hat,
+        cv=cv,
+        min_gain=min_gain,
+        noise_factor=noise_factor,
+        alpha=alpha,
+        max_effects=int(max_effects),
+        progress=progress,
+    )
+    steps, kept = sel.steps, sel.kept
+
+    # final fits on all usable samples, in the order of selection
+    by_key = {c.key: c for c in cands}
+    names = [by_key[k].name for k in kept]
+    all_train = [r.usable.copy() for r in recs]
+    drift_kept = "sensor_drift" in names
+    base = ctx.refit_base([], ctx.given, all_train, drift_kept) if do_refit else ctx.given
+    chain = Chain(base)
+    effects: list[EffectReport] = []
+    drift_eff: FittedEffect | None = None
+    drift_curves: list[np.ndarray] = [np.zeros(r.n) for r in recs]
+
+    def full_pred(ch: Chain, with_drift: bool) -> list[np.ndarray]:
+        preds = ctx.predict(ch)
+        if not with_drift:
+            return preds
+        return [
+            p + ctx.drift_basis(i) @ ctx.drift_fit(i, r.y - p, r.usable)
+            for i, (r, p) in enumerate(zip(recs, preds))
+        ]
+
+    drift_so_far = False
+    for k, key in enumerate(kept):
+        cand = by_key[key]
+        name = cand.name
+        before = full_pred(chain, drift_so_far)
+        if isinstance(cand, DriftCandidate):
+            drift_so_far = True
+            after = full_pred(chain, True)
+            plain = ctx.predict(chain)
+            drift_curves = [a - b for a, b in zip(after, plain)]
+            slopes, w = [], []
+            for i in diag:
+                r, d = recs[i], drift_curves[i]
+                T = float(r.t[-1] - r.t[0])
+                if T > 0:
+                    slopes.append((d[-1] - d[0]) / T)
+                    w.append(T)
+            rate = float(np.average(slopes, weights=w)) if slopes else 0.0
+            cov = np.array([[np.var(slopes, ddof=1) / len(slopes)]]) if len(slopes) > 1 else None
+            eff = FittedEffect(cand, np.array([rate]), cov)
+            drift_eff = eff
+        else:
+            chain = ctx.fit(cand, chain, all_train, drift_kept)
+            eff = chain.effects[-1]
+            eff.cov = ctx.covariance(chain, all_train, drift_kept)
+            after = full_pred(chain, drift_so_far)
+        st = steps[k]
+        sc = st.scores[key]
+        gain = st.gains[key]
+        ev = (
+            f"held-out RMSE {1e3 * st.baseline.rmse:.4g} -> {1e3 * sc.rmse:.4g} mV "
+            f"({100 * gain:.0f} % lower); explains {st.explained[key]:.3g} x the noise variance; "
+            f"sign-flip p = {st.p_values[key]:.2g} "
+            f"over {sc.n_blocks.size} held-out blocks; {st.n_params[key]:.3g} fitted parameters"
+        )
+        if cand.variant:
+            ev += f"; form: {cand.variant.replace('_', ' ')}"
+        others = sorted(
+            (n for n in st.scores if by_key[n].name != name and st.gains[n] > 0),
+            key=lambda n: -st.gains[n],
+        )
+        if others and st.gains[others[0]] > 0.8 * gain:
+            ev += (
+                f"; also nearly as good: {others[0]} ({100 * st.gains[others[0]]:.0f} % lower, "
+                f"{st.n_params[others[0]]:.3g} parameters)"
+            )
+        dsub = [recs[i] for i in diag]
+        corr = [after[i] - before[i] for i in diag]
+        params = cand.report_params(eff.x, eff.cov, ctx)
+        for key, v in cand.fixed.items():
+            params[key] = {
+                "value": float(v),
+                "std": 0.0,
+                "unit": dict(cand.block_type.PARAMS).get(key, ""),
+                "fixed": True,
+            }
+        if isinstance(cand, DriftCandidate):
+            p2p = {recs[i].name: float(np.ptp(drift_curves[i][recs[i].usable])) for i in diag}
+            params["peak_to_peak"] = {
+                "value": max(p2p.values()),
+                "std": float("nan"),
+                "unit": "V",
+                "per_recording": p2p,
+            }
+        effects.append(
+            EffectReport(
+                name=name,
+                statement=cand.statement(eff.x, eff.cov, ctx),
+                evidence=ev,
+                where=where_of(dsub, corr, ctx.u_span),
+                parameters=params,
+                heldout_rmse_before=st.baseline.rmse,
+                heldout_rmse_after=sc.rmse,
+            )
+        )
+
+    # augmented model and analyses
+    base_model = model
+    if do_refit:
+        base_model = PreisachModel(
+            ctx.table(chain.base),
+            name=(model.name or "model") + " (refitted)",
+            metadata={"source": "diagnosis refit", "levels": int(ctx.levels.size)},
+            out_of_range=model.out_of_range,
+        )
+    ordered = sorted(
+        chain.effects, key=lambda e: ({"input": 0, "feedback": 1}.get(e.cand.side, 2), e.cand.order)
+    )
+    blocks: list[Block] = [e.cand.block(e.x, ctx.dt_min) for e in ordered]
+    if drift_eff is not None:
+        blocks.append(drift_eff.cand.block(drift_eff.x, ctx.dt_min))
+    aug = AugmentedModel(
+        base_model,
+        blocks,
+        name=(model.name + "+" + "+".join(names)) if names else model.name,
+        metadata={
+            "diagnosis": {"verdict": names[0] if names else "none", "effects": names, "forms": kept}
+        },
+    )
+    last = steps[-1] if steps else None
+    final_score = (
+        last.scores[last.chosen] if last and last.chosen else (last.baseline if last else sel.given)
+    )
+    rmse_before = sel.given.rmse
+    rmse_after = (
+        final_score.rmse
+        if kept
+        else (sel.refit_baseline.rmse if sel.refit_baseline else rmse_before)
+    )
+    res_after = final_score.residuals if kept else res0
+    pred_after = full_pred(chain, drift_kept)
+    dsub = [recs[i] for i in diag]
+    before_a = analyse_residuals(
+        dsub, [res0[i] for i in diag], [pred0[i] for i in diag], sigma_hat, u_span=ctx.u_span
+    )
+    after_a = analyse_residuals(
+        dsub,
+        [res_after[i] for i in diag],
+        [pred_after[i] for i in diag],
+        sigma_hat,
+        u_span=ctx.u_span,
+    )
+    notes = []
+    if sel.refit_baseline is not None:
+        notes.append(
+            f"base refitted with every candidate; refitted base alone: held-out RMSE "
+            f"{1e3 * sel.refit_baseline.rmse:.4g} mV"
+        )
+    report = DiagnosisReport(
+        verdict=names[0] if names else "none",
+        effects=effects,
+        rmse_before=rmse_before,
+        rmse_after=rmse_after,
+        noise_sigma=sigma_hat,
+        model=aug,
+        before=before_a,
+        after=after_a,
+        candidates=candidate_table(steps),
+        seconds=time.perf_counter() - t_start,
+        notes=notes,
+        _recs=dsub,
+        _pred_before=[pred0[i] for i in diag],
+        _pred_after=[pred_after[i] for i in diag],
+        _res_after=[res_after[i] for i in diag],
+    )
+    if progress:
+        progress(f"verdict: {report.verdict} ({report.seconds:.1f} s)")
+    return report

@@ -1,0 +1,438 @@
+"""The diagnosis report: verdict, effects with evidence, parameters and the augmented model."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Union
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal
+
+from .augmented import AugmentedModel
+from .locate import ResidualAnalysis, motion_features
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+    from .engine import Rec, StepResult
+
+__all__ = ["DiagnosisReport", "EffectReport"]
+
+Array = NDArray[np.float64]
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+@dataclass
+class EffectReport:
+    """One kept effect.
+
+    Attributes
+    ----------
+    name : str
+        Effect name (``"delay"``, ``"creep"``, ...).
+    statement : str
+        One line of physics a user can act on.
+    evidence : str
+        The numbers that justify keeping it.
+    where : dict
+        Where its correction acts: recordings, input range and direction, near reversals,
+        frequency band (shares of the correction's power).
+    parameters : dict
+        ``{name: {"value", "std", "unit"}}``; ``std`` is the standard uncertainty.
+    heldout_rmse_before, heldout_rmse_after : float
+        Held-out RMSE (V) of the chain without and with this effect.
+
+    """
+
+    name: str
+    statement: str
+    evidence: str
+    where: dict[str, Any]
+    parameters: dict[str, dict[str, Any]]
+    heldout_rmse_before: float
+    heldout_rmse_after: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """The issue's schema for one effect (the statement leads the evidence)."""
+        return {
+            "name": self.name,
+            "evidence": f"{self.statement}. {self.evidence}",
+            "where": self.where,
+            "parameters": self.parameters,
+            "heldout_rmse_before": self.heldout_rmse_before,
+            "heldout_rmse_after": self.heldout_rmse_after,
+        }
+
+
+@dataclass
+class DiagnosisReport:
+    """Result of :func:`preisach.diagnose.diagnose`.
+
+    Attributes
+    ----------
+    verdict : str
+        Name of the most important effect, or ``"none"``.
+    effects : list of EffectReport
+        Kept effects, most important first (the order of the forward selection).
+    rmse_before : float
+        RMSE (V) of the given model on the usable samples.
+    rmse_after : float
+        Held-out RMSE (V) of the augmented model on the same samples (every sample is
+        predicted by the fit on the other fold).
+    noise_sigma : float
+        Measurement noise standard deviation (V) estimated from the data.
+    model : AugmentedModel
+        The base model with the kept blocks, fitted on all usable samples.
+    before, after : ResidualAnalysis
+        Residual analysis of the given model and of the augmented model (held-out).
+    candidates : list of dict
+        Every candidate in every selection step: held-out RMSE, gain, p-value, decision.
+
+    """
+
+    verdict: str
+    effects: list[EffectReport]
+    rmse_before: float
+    rmse_after: float
+    noise_sigma: float
+    model: AugmentedModel
+    before: ResidualAnalysis
+    after: ResidualAnalysis
+    candidates: list[dict[str, Any]]
+    seconds: float = 0.0
+    notes: list[str] = field(default_factory=list)
+    _recs: list[Any] = field(default_factory=list, repr=False)
+    _pred_before: list[Array] = field(default_factory=list, repr=False)
+    _pred_after: list[Array] = field(default_factory=list, repr=False)
+    _res_after: list[Array] = field(default_factory=list, repr=False)
+
+    # ------------------------------------------------------------------ output
+    def to_dict(self) -> dict[str, Any]:
+        """The report in the issue's JSON schema (volts)."""
+        return {
+            "verdict": self.verdict,
+            "effects": [e.to_dict() for e in self.effects],
+            "rmse_before": self.rmse_before,
+            "rmse_after": self.rmse_after,
+        }
+
+    def to_json(self, path: PathLike | None = None, *, indent: int = 2) -> str:
+        """JSON text of :meth:`to_dict`; also written to ``path`` when given."""
+        text = json.dumps(_jsonable(self.to_dict()), indent=indent)
+        if path is not None:
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(text + "\n")
+        return text
+
+    def details(self) -> dict[str, Any]:
+        """Everything: the schema plus noise, residual analyses and the candidate table."""
+        d = self.to_dict()
+        d.update(
+            {
+                "noise_sigma": self.noise_sigma,
+                "statements": [e.statement for e in self.effects],
+                "before": self.before.to_dict(),
+                "after": self.after.to_dict(),
+                "candidates": self.candidates,
+                "model": self.model.describe(),
+                "seconds": self.seconds,
+                "notes": self.notes,
+            }
+        )
+        return _jsonable(d)
+
+    def summary(self) -> str:
+        """Readable text: verdict, statements, evidence, candidate table, residual analysis."""
+        mv = 1e3
+        lines = [
+            f"verdict: {self.verdict}",
+            f"RMSE {mv * self.rmse_before:.4g} mV (given model) -> {mv * self.rmse_after:.4g} mV "
+            f"(augmented, held-out); noise {mv * self.noise_sigma:.3g} mV",
+        ]
+        lines += [f"note: {n}" for n in self.notes]
+        for k, e in enumerate(self.effects, 1):
+            lines.append(f"{k}. {e.name}: {e.statement}")
+            lines.append(f"   {e.evidence}")
+        lines.append("candidates (held-out RMSE per selection step):")
+        for c in self.candidates:
+            lines.append(
+                f"  step {c['step']}: {c['name']:<21} {mv * c['heldout_rmse']:8.4g} mV  "
+                f"gain {100 * c['gain']:6.1f} %  p {c['p_value']:.3g}  k {c['n_params']:>3}  "
+                f"{'KEPT' if c['kept'] else c['decision']}"
+            )
+        lines.append("where the given model's residual lives:")
+        lines += ["  " + s for s in self.before.summary()]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    # ------------------------------------------------------------------ figure
+    def plot(self, *, fig: Figure | None = None) -> Figure:
+        """Residual maps, spectra and the held-out fit before/after; returns the Figure."""
+        from matplotlib.figure import Figure
+
+        if fig is None:
+            fig = Figure(figsize=(14, 12))
+        axs = fig.subplots(3, 2)
+        mv = 1e3
+        recs = self._recs
+        # (a) residual against time, recordings side by side
+        ax = axs[0, 0]
+        offset = 0.0
+        for i, r in enumerate(recs):
+            t = r.t - r.t[0] + offset
+            rb = np.where(r.usable, r.y - self._pred_before[i], np.nan)
+            ax.plot(t, mv * rb, color="0.6", lw=0.5, label="given model" if i == 0 else None)
+            ax.plot(
+                t,
+                mv * self._res_after[i],
+                color="C3",
+                lw=0.5,
+                label="augmented (held-out)" if i == 0 else None,
+            )
+            ax.axvline(offset, color="k", lw=0.5)
+            ax.text(
+                offset, 1.0, f" {r.name}", transform=ax.get_xaxis_transform(), va="top", fontsize=7
+            )
+            offset = t[-1] + 0.5
+        ax.set_xlabel("time, recordings in sequence (s)")
+        ax.set_ylabel("residual y_meas - y_sim (mV)")
+        ax.set_title("where in time: residual per recording")
+        ax.legend(loc="lower right", fontsize=7)
+        # (b) spectra
+        ax = axs[0, 1]
+        sb, sa = self.before.spectrum, self.after.spectrum
+        if sb:
+            ax.semilogy(sb["f"], sb["output_psd"], color="0.3", lw=0.8, label="output y")
+            ax.semilogy(
+                sb["f"], sb["residual_psd"], color="0.6", lw=0.8, label="residual, given model"
+            )
+        if sa:
+            ax.semilogy(
+                sa["f"], sa["residual_psd"], color="C3", lw=0.8, label="residual, augmented"
+            )
+        if recs and self.noise_sigma > 0:
+            dt = min(r.dt for r in recs)
+            ax.axhline(
+                2 * self.noise_sigma**2 * dt, color="C0", ls="--", lw=0.8, label="white-noise floor"
+            )
+        for pk in self.before.spectrum.get("peaks", []):
+            ax.annotate(
+                f"{pk['f']:.3g} Hz",
+                (pk["f"], np.interp(pk["f"], sb["f"], sb["residual_psd"])),
+                fontsize=7,
+            )
+        ax.set_xscale("log")
+        ax.set_xlabel("frequency (Hz)")
+        ax.set_ylabel("PSD (V²/Hz)")
+        ax.set_title("which band: Welch spectra")
+        ax.legend(fontsize=7)
+        # (c) residual map over input level and direction
+        ax = axs[1, 0]
+        im, ia = self.before.input_map, self.after.input_map
+        for key, col in (("rising", "C1"), ("falling", "C0"), ("holding", "C2")):
+            ax.plot(
+                im["levels"], mv * im[f"{key}_mean"], "-o", ms=3, color=col, label=f"{key}, given"
+            )
+            ax.plot(
+                ia["levels"],
+                mv * ia[f"{key}_mean"],
+                "--",
+                color=col,
+                lw=0.8,
+                label=f"{key}, augmented",
+            )
+        ax.axhline(0, color="k", lw=0.5)
+        ax.set_xlabel("input u (V)")
+        ax.set_ylabel("mean residual (mV)")
+        ax.set_title("which input range and direction: residual map")
+        ax.legend(fontsize=6, ncol=2)
+        # (d) what the residual follows
+        ax = axs[1, 1]
+        names = list(self.before.covariates)
+        x = np.arange(len(names))
+        eb = [self.before.covariates[n].eta2 for n in names]
+        ea = [self.after.covariates[n].eta2 if n in self.after.covariates else 0.0 for n in names]
+        ax.bar(x - 0.2, eb, 0.4, color="0.6", label="given model")
+        ax.bar(x + 0.2, ea, 0.4, color="C3", label="augmented")
+        for xi, n in zip(x, names):
+            p = self.before.covariates[n].p_value
+            ax.text(xi - 0.2, eb[xi], "*" if p < 0.01 else "", ha="center", fontsize=9)
+        ax.set_xticks(x)
+        ax.set_xticklabels([n.replace("_", "\n") for n in names], fontsize=7)
+        ax.set_ylabel("eta² (share of residual variance, 1)")
+        ax.set_title("what the residual follows (* p < 0.01, block permutation)")
+        ax.legend(fontsize=7)
+        # (e) held-out fit, zoom where the augmented model helps most
+        ax = axs[2, 0]
+        if recs:
+            gains = []
+            for i, r in enumerate(recs):
+                c = np.where(r.usable, self._pred_after[i] - self._pred_before[i], 0.0)
+                gains.append(float(np.max(np.abs(c))) if c.size else 0.0)
+            i = int(np.argmax(gains))
+            r = recs[i]
+            c = np.abs(np.where(r.usable, self._pred_after[i] - self._pred_before[i], 0.0))
+            k = int(np.argmax(c))
+            w = int(round(0.5 / r.dt))
+            sl = slice(max(0, k - w), min(r.n, k + w))
+            ax.plot(
+                r.t[sl],
+                mv * (r.y[sl] - self._pred_before[i][sl]),
+                color="0.5",
+                lw=0.8,
+                label="measured - given model",
+            )
+            ax.plot(
+                r.t[sl],
+                mv * self._res_after[i][sl],
+                color="C3",
+                lw=0.8,
+                label="measured - augmented (held-out)",
+            )
+            ax.axhline(0, color="k", lw=0.5)
+            ax2 = ax.twinx()
+            ax2.plot(r.t[sl], r.u[sl], color="C0", lw=0.6, alpha=0.5)
+            ax2.set_ylabel("input u (V)", color="C0")
+            ax.set_title(f"before/after, 1 s of {r.name}")
+            ax.set_xlabel("time (s)")
+            ax.set_ylabel("residual (mV)")
+            ax.legend(fontsize=7, loc="lower left")
+        # (f) candidates
+        ax = axs[2, 1]
+        step1 = [c for c in self.candidates if c["step"] == 1]
+        if step1:
+            xx = np.arange(len(step1))
+            ax.bar(
+                xx,
+                [mv * c["heldout_rmse"] for c in step1],
+                color=["C3" if c["kept"] else "0.6" for c in step1],
+            )
+            ax.axhline(mv * self.rmse_before, color="k", lw=0.8, label="given model")
+            ax.axhline(
+                mv * step1[0]["baseline_rmse"],
+                color="k",
+                ls=":",
+                lw=0.8,
+                label="baseline of the selection",
+            )
+            ax.axhline(mv * self.noise_sigma, color="C0", ls="--", lw=0.8, label="noise")
+            ax.set_xticks(xx)
+            ax.set_xticklabels(
+                [c["name"].replace("_", "\n").replace("/", "/\n") for c in step1], fontsize=6
+            )
+            ax.set_ylabel("held-out RMSE (mV)")
+            ax.set_title(f"candidates, first step (verdict: {self.verdict})")
+            ax.legend(fontsize=7)
+        fig.tight_layout()
+        return fig
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return [_jsonable(v) for v in x.tolist()]
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def where_of(recs: list[Rec], correction: list[Array], u_span: float) -> dict[str, Any]:
+    """Where a correction signal acts (shares of its power)."""
+    tol = 5e-4 * u_span
+    tot = (
+        sum(float(np.sum(np.where(r.usable, c, 0.0) ** 2)) for r, c in zip(recs, correction)) or 1.0
+    )
+    per_rec: dict[str, float] = {}
+    dirs = {"rising": 0.0, "falling": 0.0, "holding": 0.0}
+    near_rev_power = near_rev_time = 0.0
+    n_use = 0
+    us, ps = [], []
+    spec_acc: Array | None = None
+    f_axis: Array | None = None
+    for r, c in zip(recs, correction):
+        c = np.where(r.usable, c, 0.0)
+        p = c * c
+        per_rec[r.name] = per_rec.get(r.name, 0.0) + float(p.sum()) / tot
+        f = motion_features(r.u, r.dt, tol)
+        dirs["rising"] += float(p[f["direction"] > 0].sum()) / tot
+        dirs["falling"] += float(p[f["direction"] < 0].sum()) / tot
+        dirs["holding"] += float(p[f["direction"] == 0].sum()) / tot
+        near = np.nan_to_num(f["since_reversal"], nan=np.inf) < 0.05
+        near_rev_power += float(p[near & r.usable].sum()) / tot
+        near_rev_time += float(np.count_nonzero(near & r.usable))
+        n_use += int(r.usable.sum())
+        us.append(r.u[r.usable])
+        ps.append(p[r.usable])
+        if c.size >= 64:
+            nper = int(
+                min(c.size, 2 ** int(math.floor(math.log2(max(64, min(c.size, 2.0 / r.dt))))))
+            )
+            ff, pc = signal.welch(c, fs=1 / r.dt, nperseg=nper)
+            if f_axis is None:
+                f_axis, spec_acc = ff, pc * c.size
+            else:
+                spec_acc = spec_acc + np.interp(f_axis, ff, pc) * c.size
+    u = np.concatenate(us) if us else np.zeros(0)
+    p = np.concatenate(ps) if ps else np.zeros(0)
+    where: dict[str, Any] = {
+        "recordings": {k: round(v, 4) for k, v in sorted(per_rec.items(), key=lambda kv: -kv[1])}
+    }
+    if u.size:
+        order = np.argsort(u)
+        cp = np.cumsum(p[order])
+        if cp[-1] > 0:
+            cp = cp / cp[-1]
+            lo = float(u[order][int(np.searchsorted(cp, 0.1))])
+            hi = float(u[order][min(int(np.searchsorted(cp, 0.9)), u.size - 1)])
+            where["input_range_V"] = [lo, hi]
+    where["direction"] = {k: round(v, 4) for k, v in dirs.items()}
+    where["near_reversals"] = {
+        "power_share": round(near_rev_power, 4),
+        "time_share": round(near_rev_time / max(n_use, 1), 4),
+        "window_s": 0.05,
+    }
+    if f_axis is not None and spec_acc is not None and spec_acc.sum() > 0:
+        cum = np.cumsum(spec_acc) / spec_acc.sum()
+        where["band_Hz"] = [
+            float(f_axis[int(np.searchsorted(cum, 0.1))]),
+            float(f_axis[min(int(np.searchsorted(cum, 0.9)), f_axis.size - 1)]),
+        ]
+        where["peak_Hz"] = float(f_axis[int(np.argmax(spec_acc))])
+    return where
+
+
+def candidate_table(steps: list[StepResult]) -> list[dict[str, Any]]:
+    """One row per candidate and selection step."""
+    rows = []
+    for k, st in enumerate(steps, 1):
+        for name, sc in sorted(st.scores.items(), key=lambda kv: kv[1].mse):
+            rows.append(
+                {
+                    "step": k,
+                    "name": name,
+                    "heldout_rmse": sc.rmse,
+                    "baseline_rmse": st.baseline.rmse,
+                    "gain": st.gains[name],
+                    "explained_noise_variances": st.explained[name],
+                    "p_value": st.p_values[name],
+                    "n_params": st.n_params[name],
+                    "penalised_score": st.penalised[name],
+                    "kept": st.chosen == name,
+                    "decision": st.reasons[name],
+                }
+            )
+    return rows

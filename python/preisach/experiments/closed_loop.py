@@ -1,0 +1,228 @@
+"""Closed-loop PI regulation test (thesis §5.1-5.2): the control effort spent against noise.
+
+From an initial state the offset is held; at ``t_1 + 1`` s the discrete PI controller of
+Eq 5.2 starts (the loop runs in C++, :func:`preisach._core.closed_loop`), noise scaled by
+``K_n`` is added from ``t_1 + 2`` to ``t_1 + 10`` s and the trial ends at ``t_1 + 12`` s.  The
+control effort ``n_c = ||u_cn - ubar_c||_2`` (Eq 5.3) counts only what the controller does
+against the noise (:func:`preisach.experiments.protocol.control_effort`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .plant import Plant
+from .protocol import ClosedLoopProtocol, control_effort, window_mean
+from .waveforms import Initialisation
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = ["ClosedLoopResult", "closed_loop_test", "closed_loop_trials"]
+
+
+@dataclass
+class ClosedLoopResult:
+    """One closed-loop trial.
+
+    Attributes
+    ----------
+    kind, frequency, gain, seed, sample_time, offset
+        As in :class:`DriftResult`.
+    setpoint : float
+        ``y_d`` (V).
+    nc : float
+        Control effort ``||u_cn - ubar_c||_2`` over the samples (controller units, Eq 5.3).
+    nc_l2 : float
+        ``nc * sqrt(sample_time)``: the L2 norm of the signal (units * s^0.5), comparable
+        across sample times.
+    uc_baseline : float
+        ``ubar_c`` (controller units).
+    error_rms : float
+        RMS of ``y_d - y`` during the effort window (V).
+    error_final : float
+        Mean of ``y_d - y`` over the last second (V).
+    input, output, control : ndarray or None
+        Applied input (V), output (V), controller output (controller units) from ``t_1``;
+        ``None`` when a sweep did not keep the trace.
+    """
+
+    kind: str
+    frequency: float
+    gain: float
+    seed: int
+    sample_time: float
+    offset: float
+    setpoint: float
+    nc: float
+    nc_l2: float
+    uc_baseline: float
+    error_rms: float
+    error_final: float
+    input: NDArray[np.float64] | None = field(default=None, repr=False)
+    output: NDArray[np.float64] | None = field(default=None, repr=False)
+    control: NDArray[np.float64] | None = field(default=None, repr=False)
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Sample times after ``t_1`` (s)."""
+        if self.output is None:
+            raise ValueError("this result kept no trace (time, input, output, control)")
+        return np.asarray(np.arange(len(self.output)) * self.sample_time, dtype=np.float64)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the scalar results (no trace) as a dict."""
+        return {
+            "kind": self.kind,
+            "frequency": self.frequency,
+            "gain": self.gain,
+            "seed": self.seed,
+            "offset": self.offset,
+            "setpoint": self.setpoint,
+            "nc": self.nc,
+            "nc_l2": self.nc_l2,
+            "uc_baseline": self.uc_baseline,
+            "error_rms": self.error_rms,
+            "error_final": self.error_final,
+        }
+
+    def plot(self, *, fig: Figure | None = None) -> Figure:
+        """Output, controller output and input against time after ``t_1``."""
+        from matplotlib.figure import Figure
+
+        t = self.time
+        fig = Figure(figsize=(8.0, 6.5)) if fig is None else fig
+        ax_y, ax_c, ax_u = fig.subplots(3, 1, sharex=True)
+        ax_y.plot(t, self.output, lw=0.8)
+        ax_y.axhline(self.setpoint, color="k", ls=":", lw=0.8, label="y_d")
+        ax_y.set_ylabel("output y (V)")
+        ax_y.legend(fontsize="small")
+        ax_c.plot(t, self.control, lw=0.7, color="C1")
+        ax_c.axhline(self.uc_baseline, color="k", ls=":", lw=0.8)
+        ax_c.set_ylabel("controller u_c (DAQ V)")
+        ax_u.plot(t, self.input, lw=0.7, color="C2")
+        ax_u.set_ylabel("input u (V)")
+        ax_u.set_xlabel("time after t1 (s)")
+        ax_y.set_title(
+            f"closed loop from psi_{self.kind}, f = {self.frequency:g} Hz, K_n = "
+            f"{self.gain:g}: n_c = {self.nc:.3f}"
+        )
+        return fig
+
+
+def closed_loop_trials(
+    plant: Plant,
+    init: Initialisation,
+    gains: Sequence[float],
+    seeds: Sequence[int],
+    protocol: ClosedLoopProtocol | None = None,
+    *,
+    keep_traces: bool = True,
+) -> list[ClosedLoopResult]:
+    """Closed-loop trials from one initial state for paired lists of gains and seeds.
+
+    On a plant with snapshots and ``run_closed_loop_batch`` (:class:`ModelPlant`) all trials
+    run in one C++ call on every core with the GIL released; otherwise each trial resets the
+    plant, replays the initialisation waveform and runs the loop with ``run_closed_loop``.
+
+    Parameters
+    ----------
+    plant : Plant
+        Where the output comes from.
+    init : Initialisation
+        From :func:`drive_to_state` on the same plant; its ``y_d`` is the setpoint.
+    gains, seeds : sequence
+        ``K_n`` and noise seed of each trial (same length).
+    protocol : ClosedLoopProtocol, optional
+        Controller, timing and noise (thesis defaults: K_p = 1.5, K_i = 30).
+    keep_traces : bool
+        Keep the arrays in the results.
+
+    Returns
+    -------
+    list of ClosedLoopResult
+    """
+    p = ClosedLoopProtocol() if protocol is None else protocol
+    gains = [float(g) for g in gains]
+    seeds = [int(s) for s in seeds]
+    if len(gains) != len(seeds):
+        raise ValueError(
+            f"gains and seeds: need the same length, got {len(gains)} and {len(seeds)}"
+        )
+    ts = float(plant.sample_time)
+    if not np.isclose(init.waveform.sample_time, ts, rtol=1e-9):
+        raise ValueError(
+            f"init was made at {init.waveform.sample_time:g} s, the plant samples at {ts:g} s"
+        )
+    cfg = p.pi_config(init.y_d, ts)
+    U_open = p.open_inputs(init.offset, gains, seeds, ts)
+    batch = getattr(plant, "run_closed_loop_batch", None)
+    if init.state is not None and batch is not None:
+        U, Y, UC = (np.asarray(a) for a in batch(init.state, U_open, cfg))
+    else:
+        U, Y, UC = (np.empty_like(U_open) for _ in range(3))
+        for r in range(len(U_open)):
+            plant.reset(None)
+            plant.run_open_loop(init.waveform.input)
+            U[r], Y[r], UC[r] = plant.run_closed_loop(U_open[r], cfg)
+    out = []
+    last = (max(0.0, p.end - 1.0), p.end)
+    for r, (g, s) in enumerate(zip(gains, seeds)):
+        nc, ubar = control_effort(UC[r], ts, p.effort, p.baseline)
+        i0, i1 = int(round(p.effort[0] / ts)), int(round(p.effort[1] / ts))
+        err = init.y_d - Y[r]
+        out.append(
+            ClosedLoopResult(
+                init.kind,
+                init.frequency,
+                g,
+                s,
+                ts,
+                init.offset,
+                init.y_d,
+                nc,
+                nc * math.sqrt(ts),
+                ubar,
+                float(np.sqrt(np.mean(err[i0:i1] ** 2))),
+                window_mean(err, ts, last),
+                U[r] if keep_traces else None,
+                Y[r] if keep_traces else None,
+                UC[r] if keep_traces else None,
+            )
+        )
+    return out
+
+
+def closed_loop_test(
+    plant: Plant,
+    init: Initialisation,
+    gain: float,
+    seed: int,
+    protocol: ClosedLoopProtocol | None = None,
+) -> ClosedLoopResult:
+    """One closed-loop PI trial (§5.1 steps 2-5) from an initial state; keeps the trace.
+
+    Parameters
+    ----------
+    plant : Plant
+        Where the output comes from.
+    init : Initialisation
+        Initial state reached on this plant; ``init.y_d`` is the setpoint.
+    gain : float
+        Noise gain ``K_n``.
+    seed : int
+        Noise seed.
+    protocol : ClosedLoopProtocol, optional
+        Controller, timing and noise; thesis defaults.
+
+    Returns
+    -------
+    ClosedLoopResult
+    """
+    return closed_loop_trials(plant, init, [gain], [seed], protocol)[0]

@@ -1,0 +1,209 @@
+"""Open-loop drift test (thesis §4.2-4.3): how far the output wanders under input noise.
+
+From an initial state (psi_n, psi_a or psi_d, all with output ``y_d``) the offset is held for
+2 s, then 8 s of zero-mean noise scaled by ``K_n`` is added to it.  The differential drift
+``ybar(8, 10) - ybar(0, 2)`` measures the net output change the noise leaves behind
+(:func:`preisach.experiments.protocol.differential_drift`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .plant import Plant
+from .protocol import DriftProtocol, differential_drift
+from .waveforms import Initialisation
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = ["DriftResult", "drift_test", "drift_trials"]
+
+
+@dataclass
+class DriftResult:
+    """One open-loop drift trial.
+
+    Attributes
+    ----------
+    kind : str
+        Initial state, ``"n"``, ``"a"`` or ``"d"``.
+    frequency : float
+        Initialisation frequency (Hz).
+    gain : float
+        Noise gain ``K_n``.
+    seed : int
+        Noise seed.
+    sample_time : float
+        Sampling period (s).
+    offset : float
+        Input held from ``t_1`` (V).
+    drift : float
+        ``ybar_after - ybar_before`` (V).
+    ybar_before, ybar_after : float
+        Mean outputs over the protocol's windows (V).
+    input, output : ndarray or None
+        Test segment from ``t_1`` (V); ``None`` when a sweep did not keep the trace.
+    """
+
+    kind: str
+    frequency: float
+    gain: float
+    seed: int
+    sample_time: float
+    offset: float
+    drift: float
+    ybar_before: float
+    ybar_after: float
+    input: NDArray[np.float64] | None = field(default=None, repr=False)
+    output: NDArray[np.float64] | None = field(default=None, repr=False)
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Sample times after ``t_1`` (s)."""
+        if self.output is None:
+            raise ValueError("this result kept no trace (time, input, output)")
+        return np.asarray(np.arange(len(self.output)) * self.sample_time, dtype=np.float64)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the scalar results (no trace) as a dict."""
+        return {
+            "kind": self.kind,
+            "frequency": self.frequency,
+            "gain": self.gain,
+            "seed": self.seed,
+            "offset": self.offset,
+            "drift": self.drift,
+            "ybar_before": self.ybar_before,
+            "ybar_after": self.ybar_after,
+        }
+
+    def plot(self, *, fig: Figure | None = None) -> Figure:
+        """Input and output against time after ``t_1``, with the averaging windows marked."""
+        from matplotlib.figure import Figure
+
+        t = self.time
+        fig = Figure(figsize=(8.0, 5.0)) if fig is None else fig
+        ax_u, ax_y = fig.subplots(2, 1, sharex=True)
+        ax_u.plot(t, self.input, lw=0.7)
+        ax_u.set_ylabel("input u (V)")
+        ax_y.plot(t, self.output, lw=0.8)
+        ax_y.axhline(self.ybar_before, color="C1", ls="--", lw=0.8, label="ybar before")
+        ax_y.axhline(self.ybar_after, color="C2", ls="--", lw=0.8, label="ybar after")
+        ax_y.set_xlabel("time after t1 (s)")
+        ax_y.set_ylabel("output y (V)")
+        ax_y.legend(fontsize="small")
+        ax_u.set_title(
+            f"open-loop drift from psi_{self.kind}, f = {self.frequency:g} Hz, "
+            f"K_n = {self.gain:g}: drift {self.drift:+.4f} V"
+        )
+        return fig
+
+
+def drift_trials(
+    plant: Plant,
+    init: Initialisation,
+    gains: Sequence[float],
+    seeds: Sequence[int],
+    protocol: DriftProtocol | None = None,
+    *,
+    keep_traces: bool = True,
+) -> list[DriftResult]:
+    """Drift trials from one initial state for paired lists of gains and seeds.
+
+    On a plant that can restore a snapshot and run batches (:class:`ModelPlant`) all trials
+    run in one call from ``init.state`` on every core; otherwise each trial resets the plant,
+    replays the initialisation waveform and runs the test segment.
+
+    Parameters
+    ----------
+    plant : Plant
+        Where the output comes from.
+    init : Initialisation
+        From :func:`drive_to_state` on the same plant.
+    gains, seeds : sequence
+        ``K_n`` and noise seed of each trial (same length).
+    protocol : DriftProtocol, optional
+        Timing and noise (thesis defaults).
+    keep_traces : bool
+        Keep input and output arrays in the results.
+
+    Returns
+    -------
+    list of DriftResult
+    """
+    p = DriftProtocol() if protocol is None else protocol
+    gains = [float(g) for g in gains]
+    seeds = [int(s) for s in seeds]
+    if len(gains) != len(seeds):
+        raise ValueError(
+            f"gains and seeds: need the same length, got {len(gains)} and {len(seeds)}"
+        )
+    ts = float(plant.sample_time)
+    if not np.isclose(init.waveform.sample_time, ts, rtol=1e-9):
+        raise ValueError(
+            f"init was made at {init.waveform.sample_time:g} s, the plant samples at {ts:g} s"
+        )
+    U = p.open_inputs(init.offset, gains, seeds, ts)
+    batch = getattr(plant, "run_open_loop_batch", None)
+    if init.state is not None and batch is not None:
+        Y = np.asarray(batch(init.state, U))
+    else:
+        Y = np.empty_like(U)
+        for r in range(len(U)):
+            plant.reset(None)
+            plant.run_open_loop(init.waveform.input)
+            Y[r] = plant.run_open_loop(U[r])
+    out = []
+    for r, (g, s) in enumerate(zip(gains, seeds)):
+        d, yb, ya = differential_drift(Y[r], ts, p.before, p.after)
+        out.append(
+            DriftResult(
+                init.kind,
+                init.frequency,
+                g,
+                s,
+                ts,
+                init.offset,
+                d,
+                yb,
+                ya,
+                U[r] if keep_traces else None,
+                Y[r] if keep_traces else None,
+            )
+        )
+    return out
+
+
+def drift_test(
+    plant: Plant,
+    init: Initialisation,
+    gain: float,
+    seed: int,
+    protocol: DriftProtocol | None = None,
+) -> DriftResult:
+    """One open-loop drift trial (§4.2 steps 4-6) from an initial state; keeps the trace.
+
+    Parameters
+    ----------
+    plant : Plant
+        Where the output comes from.
+    init : Initialisation
+        Initial state reached on this plant (:func:`drive_to_state`).
+    gain : float
+        Noise gain ``K_n`` (thesis: 0.8 i, i = 1..7).
+    seed : int
+        Noise seed.
+    protocol : DriftProtocol, optional
+        Timing and noise; thesis defaults.
+
+    Returns
+    -------
+    DriftResult
+    """
+    return drift_trials(plant, init, [gain], [seed], protocol)[0]

@@ -1,0 +1,620 @@
+"""Inputs that drive a plant to an initial state: psi_n, psi_a, psi_d (thesis §4.2).
+
+All three start by saturating the input, so the state they reach does not depend on where the
+plant was before:
+
+* **psi_n** (Eq 4.1/4.2): a sinusoid about ``l`` whose amplitude decays linearly to zero,
+  starting at the saturation ``u_hat`` (for ``l >= 0``; ``-u_hat`` for ``l < 0``).  Its
+  reversal points pair up on the line ``alpha + beta = 2 l``, so the boundary approximates the
+  neutral state psi_n^l (Eq 2.17) with a staircase whose steps shrink to zero at the end.  The
+  thesis does not state ``t_1 - t_0``; here it is ``cycles / f`` (default 10 cycles).
+* **psi_a** (Eq 4.3, ``theta_a = -pi/2``): one period of ``u_hat sin`` starting at ``-u_hat``,
+  then half a period rising from ``-u_hat`` to the offset ``u_bar`` - a point on the ascending
+  major branch.
+* **psi_d** (Eq 4.4, ``theta_d = +pi/2``): one period starting at ``+u_hat``, then half a period
+  falling from ``+u_hat`` to ``u_bar`` - the descending major branch.  (Eq 4.4 as printed
+  repeats the offset and amplitude of Eq 4.3, which would jump from ``u_hat`` to ``u_bar`` and
+  end at ``-u_hat``; we use the continuous fall ``(u_bar + u_hat)/2 + (u_hat - u_bar)/2
+  sin(...)`` that the text describes.)
+
+In the thesis ``u_hat = 7`` V at the DAQ connector, about 99 V of amplifier output; here the
+waveforms are in model-input volts and ``u_hat`` defaults to the plant's saturation
+(``input_range``).  Asymmetric ranges are handled by starting psi_n on the side whose mirror
+image about ``l`` stays in range.
+
+:func:`drive_to_state` finds the offset: ``l = N_inv(y_d)`` (Eq 2.19/2.20) for psi_n and a
+search over ``u_bar`` for psi_a/psi_d, each refined on the plant until the output at ``t_1``
+lands in the target window - by default ``y_d +/- 0.03`` V (the thesis's simulation tolerance);
+``thresholds="experiment"`` uses the landing windows of Table 4.1 for psi_a/psi_d.
+
+Every waveform carries its time base (:attr:`Waveform.time`) so it can be played on a DAQ
+device as it is.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import ConvergenceError
+from ..model import State
+from ..neutral import NeutralLocus, neutral_locus
+from .plant import Plant
+
+__all__ = [
+    "KINDS",
+    "SIMULATION_TOLERANCE",
+    "TABLE_4_1",
+    "Initialisation",
+    "Waveform",
+    "branch_input",
+    "drive_to_state",
+    "landing_window",
+    "measure_locus",
+    "neutral_input",
+]
+
+#: The three initial states: neutral, ascending branch, descending branch.
+KINDS: tuple[str, ...] = ("n", "a", "d")
+_NAMES = {"n": "psi_n", "a": "psi_a", "d": "psi_d"}
+
+#: Output tolerance (V) around ``y_d`` for the initial states in simulation (§4.2).
+SIMULATION_TOLERANCE: float = 0.03
+
+#: Table 4.1: landing windows ``(dy_l, dy_h)`` (V) of the output at the end of the first half
+#: period, relative to ``y_d = 1``, used in the thesis's experiments for psi_a and psi_d (the
+#: beam's creep carries the output on towards ``y_d`` afterwards).
+TABLE_4_1: dict[float, dict[str, tuple[float, float]]] = {
+    1.0: {"a": (-0.22, -0.14), "d": (0.14, 0.22)},
+    2.0: {"a": (-0.28, -0.22), "d": (0.22, 0.28)},
+    4.0: {"a": (-0.44, -0.38), "d": (0.38, 0.44)},
+}
+
+
+def _check_kind(kind: str) -> str:
+    k = str(kind).lower().removeprefix("psi_")
+    if k not in KINDS:
+        raise ValueError(f"kind: expected one of 'n', 'a', 'd' (psi_n, psi_a, psi_d), got {kind!r}")
+    return k
+
+
+def _positive(name: str, v: float) -> float:
+    v = float(v)
+    if not (math.isfinite(v) and v > 0):
+        raise ValueError(f"{name}: must be a positive finite number, got {v!r}")
+    return v
+
+
+def landing_window(
+    kind: str,
+    y_d: float,
+    frequency: float | None = None,
+    *,
+    thresholds: str = "simulation",
+    tolerance: float = SIMULATION_TOLERANCE,
+) -> tuple[float, float]:
+    """Window (V) the output must land in at ``t_1`` for an initial state.
+
+    Parameters
+    ----------
+    kind : {"n", "a", "d"}
+        Initial state.
+    y_d : float
+        Desired output (V).
+    frequency : float, optional
+        Initialisation frequency (Hz); needed for ``thresholds="experiment"``.
+    thresholds : {"simulation", "experiment"}
+        ``"simulation"``: ``y_d +/- tolerance``.  ``"experiment"``: Table 4.1's
+        ``[y_d + dy_l, y_d + dy_h]`` for psi_a and psi_d at 1, 2 or 4 Hz (psi_n keeps
+        ``y_d +/- tolerance``: the thesis reaches it through the measured locus).
+    tolerance : float
+        Half-width (V) of the simulation window.
+    """
+    k = _check_kind(kind)
+    if thresholds not in ("simulation", "experiment"):
+        raise ValueError(f"thresholds: expected 'simulation' or 'experiment', got {thresholds!r}")
+    tol = _positive("tolerance", tolerance)
+    if thresholds == "experiment" and k != "n":
+        if frequency is None or float(frequency) not in TABLE_4_1:
+            raise ValueError(
+                f"thresholds='experiment': Table 4.1 has windows for 1, 2 and 4 Hz only, "
+                f"got frequency={frequency!r}"
+            )
+        lo, hi = TABLE_4_1[float(frequency)][k]
+        return (y_d + lo, y_d + hi)
+    return (y_d - tol, y_d + tol)
+
+
+@dataclass(frozen=True)
+class Waveform:
+    """An initialisation input, sampled for a plant.
+
+    Samples are at ``t_0 + k * sample_time`` for ``k = 0 .. len(input) - 1``; ``t_1`` (when the
+    state is reached and the offset starts to be held) is the sample after the last one.
+
+    Attributes
+    ----------
+    kind : str
+        ``"n"``, ``"a"`` or ``"d"``.
+    input : ndarray
+        Input samples (V).
+    sample_time : float
+        Sampling period (s).
+    offset : float
+        The value held from ``t_1`` on (V): ``l`` for psi_n, ``u_bar`` for psi_a/psi_d.
+    frequency : float
+        Frequency of the sinusoid (Hz).
+    u_hat : float
+        Saturation amplitude used (V).
+    """
+
+    kind: str
+    input: NDArray[np.float64]
+    sample_time: float
+    offset: float
+    frequency: float
+    u_hat: float
+
+    @property
+    def duration(self) -> float:
+        """``t_1 - t_0`` (s)."""
+        return len(self.input) * self.sample_time
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Sample times (s) relative to ``t_1`` (all negative; the first is ``t_0 - t_1``)."""
+        n = len(self.input)
+        return np.asarray((np.arange(n) - n) * self.sample_time, dtype=np.float64)
+
+    def with_hold(self) -> NDArray[np.float64]:
+        """Return the input followed by one sample of the offset (the input up to ``t_1``)."""
+        return np.append(self.input, self.offset)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly description (parameters, not samples)."""
+        return {
+            "kind": self.kind,
+            "offset": self.offset,
+            "frequency": self.frequency,
+            "sample_time": self.sample_time,
+            "u_hat": self.u_hat,
+            "duration": self.duration,
+            "samples": len(self.input),
+        }
+
+
+def _samples(duration: float, ts: float) -> NDArray[np.float64]:
+    n = int(round(duration / ts))
+    if n < 2:
+        raise ValueError(f"sample_time {ts:g} s is too long for a {duration:g} s waveform")
+    return np.asarray(np.arange(n) * ts, dtype=np.float64)
+
+
+def neutral_input(
+    l: float,  # noqa: E741 (the thesis's symbol)
+    frequency: float,
+    *,
+    u_range: tuple[float, float],  # noqa: E741
+    cycles: float = 10.0,
+    sample_time: float = 1e-3,
+    u_hat: float | None = None,
+) -> Waveform:
+    """Build the decaying sinusoid of Eq 4.1/4.2 that drives any state to psi_n^l.
+
+    ``u(t) = (t_1 - t)/(t_1 - t_0) * A * sin(2 pi f (t - t_0) + pi/2) + l`` on ``[t_0, t_1)``,
+    with ``A = u_hat - l`` (starting at ``+u_hat``) when ``l`` is at or above the middle of the
+    range and ``A = -u_hat' - l`` (starting at the lower saturation) otherwise - Eq 4.1's
+    ``sgn(l) u_hat - l``, and Eq 4.2 for ``l = 0``.
+
+    Parameters
+    ----------
+    l : float
+        Offset of the neutral state (V), inside ``u_range``.
+    frequency : float
+        ``f`` (Hz).
+    u_range : (float, float)
+        Input range ``(u_min, u_max)`` (V) of the plant.
+    cycles : float, default 10
+        Number of periods, ``f (t_1 - t_0)``; more cycles give finer steps of the staircase.
+    sample_time : float, default 1e-3
+        Sampling period (s).
+    u_hat : float, optional
+        Start amplitude (V, positive): the waveform starts at ``+u_hat`` or ``-u_hat``.
+        Default: the saturation ``u_max`` (or ``-u_min`` when starting low).
+
+    Returns
+    -------
+    Waveform
+    """
+    f = _positive("frequency", frequency)
+    ts = _positive("sample_time", sample_time)
+    cyc = _positive("cycles", cycles)
+    lo, hi = float(u_range[0]), float(u_range[1])
+    l = float(l)  # noqa: E741
+    if not (lo <= l <= hi):
+        raise ValueError(f"l = {l:g} V is outside the input range [{lo:g}, {hi:g}] V")
+    start_high = l >= 0.5 * (lo + hi)
+    if u_hat is None:
+        top = hi if start_high else lo
+    else:
+        top = _positive("u_hat", u_hat) * (1.0 if start_high else -1.0)
+    amp = top - l
+    duration = cyc / f
+    t = _samples(duration, ts)
+    u = (duration - t) / duration * amp * np.sin(2 * np.pi * f * t + np.pi / 2) + l
+    return Waveform("n", u, ts, l, f, abs(top))
+
+
+def branch_input(
+    kind: str,
+    u_bar: float,
+    frequency: float,
+    *,
+    u_range: tuple[float, float],
+    sample_time: float = 1e-3,
+    u_hat: float | None = None,
+) -> Waveform:
+    """One and a half periods of a sinusoid ending at ``u_bar`` on a major branch (Eq 4.3/4.4).
+
+    ``kind="a"``: ``u_hat sin(2 pi f (t - t_0) - pi/2)`` for one period (from ``-u_hat`` up to
+    ``+u_hat`` and back), then ``(u_bar + u_hat)/2 sin(...) + (u_bar - u_hat)/2`` rising to
+    ``u_bar`` at ``t_1 = t_0 + 1.5/f``.  ``kind="d"``: the mirror image, starting at ``+u_hat``
+    and falling to ``u_bar`` (see the module note on Eq 4.4).
+
+    Parameters
+    ----------
+    kind : {"a", "d"}
+        Ascending (psi_a) or descending (psi_d) branch.
+    u_bar : float
+        Final input (V), the offset held afterwards.
+    frequency : float
+        ``f`` (Hz).
+    u_range : (float, float)
+        Input range (V) of the plant; the default ``u_hat`` is its saturation.
+    sample_time : float
+        Sampling period (s).
+    u_hat : float, optional
+        Amplitude (V); default: the saturation of ``u_range`` (``u_max`` for the upper, ``-u_min``
+        for the lower excursion).
+    """
+    k = _check_kind(kind)
+    if k == "n":
+        raise ValueError("branch_input: kind must be 'a' or 'd'; use neutral_input for psi_n")
+    f = _positive("frequency", frequency)
+    ts = _positive("sample_time", sample_time)
+    lo, hi = float(u_range[0]), float(u_range[1])
+    if u_hat is not None:
+        a = _positive("u_hat", u_hat)
+        lo, hi = -a, a
+    ub = float(u_bar)
+    if not (lo <= ub <= hi):
+        raise ValueError(f"u_bar = {ub:g} V is outside [{lo:g}, {hi:g}] V")
+    t = _samples(1.5 / f, ts)
+    mid, half = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    if k == "a":
+        ph = 2 * np.pi * f * t - np.pi / 2
+        u = mid + half * np.sin(ph)
+        second = t >= 1.0 / f
+        u[second] = 0.5 * (ub - lo) * np.sin(ph[second]) + 0.5 * (ub + lo)
+    else:
+        ph = 2 * np.pi * f * t + np.pi / 2
+        u = mid + half * np.sin(ph)
+        second = t >= 1.0 / f
+        u[second] = 0.5 * (hi - ub) * np.sin(ph[second]) + 0.5 * (hi + ub)
+    return Waveform(k, u, ts, ub, f, max(abs(lo), abs(hi)))
+
+
+@dataclass
+class Initialisation:
+    """An initial state reached on a plant, and how.
+
+    Attributes
+    ----------
+    kind : str
+        ``"n"``, ``"a"`` or ``"d"``.
+    waveform : Waveform
+        The input that reaches it (play it from any state).
+    y_d : float
+        Desired output (V).
+    window : (float, float)
+        Window (V) the output had to land in at ``t_1``.
+    y_end : float
+        Output at ``t_1`` (V).
+    iterations : int
+        Plant runs the offset search used.
+    state : State or None
+        Snapshot of the plant after ``t_1`` (``None`` for plants that cannot restore one).
+    l_inverse : float or None
+        For psi_n: ``N_inv(y_d)`` from the locus, before any correction on the plant (V).
+    """
+
+    kind: str
+    waveform: Waveform
+    y_d: float
+    window: tuple[float, float]
+    y_end: float
+    iterations: int
+    state: State | None = field(default=None, repr=False)
+    l_inverse: float | None = None
+
+    @property
+    def offset(self) -> float:
+        """Input held from ``t_1`` on (V)."""
+        return self.waveform.offset
+
+    @property
+    def frequency(self) -> float:
+        """Initialisation frequency (Hz)."""
+        return self.waveform.frequency
+
+    @property
+    def name(self) -> str:
+        """``"psi_n"``, ``"psi_a"`` or ``"psi_d"``."""
+        return _NAMES[self.kind]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly summary."""
+        return {
+            "kind": self.kind,
+            "name": self.name,
+            "y_d": self.y_d,
+            "window": list(self.window),
+            "y_end": self.y_end,
+            "offset": self.offset,
+            "iterations": self.iterations,
+            "l_inverse": self.l_inverse,
+            "waveform": self.waveform.to_dict(),
+        }
+
+
+def _measure(plant: Plant, wave: Waveform, settle: int) -> float:
+    plant.reset(None)
+    y = np.asarray(plant.run_open_loop(wave.with_hold()), dtype=float)
+    return float(np.mean(y[-settle:]))
+
+
+def _search(
+    measure: Callable[[float], float],
+    lo: float,
+    hi: float,
+    window: tuple[float, float],
+    x0: float,
+    max_iter: int,
+    what: str,
+) -> tuple[float, float, int]:
+    """Find x in [lo, hi] with measure(x) in window; measure is non-decreasing in x.
+
+    Illinois (modified regula falsi) on measure(x) - target, started from x0; stops as soon
+    as the measurement lands in the window.  Returns (x, measure(x), evaluations).
+    """
+    target = 0.5 * (window[0] + window[1])
+    evals = 0
+
+    def ev(x: float) -> float:
+        nonlocal evals
+        evals += 1
+        return measure(x)
+
+    def inside(y: float) -> bool:
+        return window[0] <= y <= window[1]
+
+    x = min(max(x0, lo), hi)
+    y = ev(x)
+    if inside(y):
+        return x, y, evals
+    if y < target:
+        a, fa = x, y - target
+        b = hi
+        fb = ev(b) - target
+        if inside(fb + target):
+            return b, fb + target, evals
+        if fb < 0:
+            raise ValueError(
+                f"{what}: the output cannot reach {window[0]:g}..{window[1]:g} V "
+                f"(at most {fb + target:.4g} V at the upper end {hi:g} V)"
+            )
+    else:
+        b, fb = x, y - target
+        a = lo
+        fa = ev(a) - target
+        if inside(fa + target):
+            return a, fa + target, evals
+        if fa > 0:
+            raise ValueError(
+                f"{what}: the output cannot reach {window[0]:g}..{window[1]:g} V "
+                f"(at least {fa + target:.4g} V at the lower end {lo:g} V)"
+            )
+    side = 0
+    for _ in range(max_iter):
+        x = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not (min(a, b) < x < max(a, b)):
+            x = 0.5 * (a + b)
+        y = ev(x)
+        if inside(y):
+            return x, y, evals
+        fx = y - target
+        if fx < 0:
+            a, fa = x, fx
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            b, fb = x, fx
+            if side == 1:
+                fa *= 0.5
+            side = 1
+        if abs(b - a) < 1e-12 * max(1.0, abs(a), abs(b)):
+            break
+    raise ConvergenceError(
+        f"{what}: no offset in [{lo:g}, {hi:g}] V put the output in "
+        f"[{window[0]:g}, {window[1]:g}] V after {evals} runs (last {y:.6g} V at "
+        f"{x:.6g} V); the output may jump over the window - widen it"
+    )
+
+
+def drive_to_state(
+    plant: Plant,
+    kind: str,
+    y_d: float,
+    frequency: float,
+    *,
+    locus: NeutralLocus | None = None,
+    thresholds: str = "simulation",
+    tolerance: float = SIMULATION_TOLERANCE,
+    window: tuple[float, float] | None = None,
+    cycles: float = 10.0,
+    u_hat: float | None = None,
+    settle: int = 1,
+    max_iter: int = 60,
+) -> Initialisation:
+    """Find and run the input that puts ``plant`` in psi_n, psi_a or psi_d with output ``y_d``.
+
+    psi_n: ``l = locus.inverse(y_d)`` (Eq 2.19/2.20); if the plant's output at ``t_1`` after the
+    decaying sinusoid (which only approximates psi_n^l) misses the window, ``l`` is corrected
+    by a search on the plant.  psi_a/psi_d: ``u_bar`` is searched on the plant (the output at
+    ``t_1`` grows with ``u_bar`` on both branches) until the output lands in the window.  The
+    plant is left in the state at ``t_1``.
+
+    Parameters
+    ----------
+    plant : Plant
+        Model-backed or DAQ-backed plant.
+    kind : {"n", "a", "d"}
+        Initial state.
+    y_d : float
+        Desired output (V).
+    frequency : float
+        Initialisation frequency ``f`` (Hz).
+    locus : NeutralLocus, optional
+        For psi_n.  Default: the exact locus of ``plant.model`` when the plant has one; a rig
+        needs a measured locus (:func:`measure_locus`).
+    thresholds, tolerance : see :func:`landing_window`
+        Default: ``y_d +/- 0.03`` V (thesis simulation tolerance).
+    window : (float, float), optional
+        Explicit landing window (V); overrides ``thresholds``.
+    cycles : float
+        Periods of the psi_n sinusoid (see :func:`neutral_input`).
+    u_hat : float, optional
+        Saturation amplitude (V); default the plant's input range.
+    settle : int
+        Output samples averaged at ``t_1`` (1: the output at ``t_1`` itself; more for a noisy rig).
+    max_iter : int
+        Iterations of the offset search.
+
+    Returns
+    -------
+    Initialisation
+
+    Raises
+    ------
+    ValueError
+        If ``y_d`` cannot be reached.
+    ConvergenceError
+        If the search does not land in the window within ``max_iter`` runs.
+    """
+    k = _check_kind(kind)
+    y_d = float(y_d)
+    if not math.isfinite(y_d):
+        raise ValueError(f"y_d: desired output is not finite ({y_d!r})")
+    f = _positive("frequency", frequency)
+    if settle < 1:
+        raise ValueError(f"settle: need at least 1 sample, got {settle}")
+    win = (
+        tuple(float(v) for v in window)
+        if window is not None
+        else landing_window(k, y_d, f, thresholds=thresholds, tolerance=tolerance)
+    )
+    if len(win) != 2 or not win[0] <= win[1]:
+        raise ValueError(f"window: expected (low, high) with low <= high, got {window!r}")
+    lo, hi = (float(v) for v in plant.input_range)
+    ts = float(plant.sample_time)
+    l_inv: float | None = None
+    if k == "n":
+        if locus is None:
+            model = getattr(plant, "model", None)
+            if model is None:
+                raise ValueError(
+                    "locus: this plant has no model; measure the neutral locus first "
+                    "(measure_locus) and pass it"
+                )
+            locus = neutral_locus(model)
+        l_inv = locus.inverse(y_d)
+
+        def make(x: float) -> Waveform:
+            return neutral_input(x, f, u_range=(lo, hi), cycles=cycles, sample_time=ts, u_hat=u_hat)
+
+        x0 = l_inv
+        what = f"psi_n at y_d = {y_d:g} V"
+    else:
+
+        def make(x: float) -> Waveform:
+            return branch_input(k, x, f, u_range=(lo, hi), sample_time=ts, u_hat=u_hat)
+
+        x0 = 0.5 * (lo + hi)
+        what = f"{_NAMES[k]} at y_d = {y_d:g} V"
+        if u_hat is not None:
+            lo, hi = -float(u_hat), float(u_hat)
+    x, y, evals = _search(
+        lambda v: _measure(plant, make(v), settle), lo, hi, (win[0], win[1]), x0, max_iter, what
+    )
+    wave = make(x)
+    y_end = _measure(plant, wave, settle)
+    return Initialisation(k, wave, y_d, (win[0], win[1]), y_end, evals + 1, plant.snapshot(), l_inv)
+
+
+def measure_locus(
+    plant: Plant,
+    offsets: np.ndarray,
+    frequency: float,
+    *,
+    cycles: float = 10.0,
+    settle: int = 1,
+    u_hat: float | None = None,
+) -> NeutralLocus:
+    """Measure ``N(l)`` on a plant: drive it with :func:`neutral_input` for every offset.
+
+    This is how the thesis finds ``l`` in the experiments (§4.2): the locus from rig data,
+    inverted by interpolation.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    offsets : array_like
+        Increasing offsets ``l`` (V).
+    frequency : float
+        Frequency of the decaying sinusoid (Hz).
+    cycles : float
+        Periods of the decaying sinusoid (see :func:`neutral_input`).
+    u_hat : float, optional
+        Start amplitude (V); default the plant's saturation.
+    settle : int
+        Output samples averaged at ``t_1``.
+
+    Returns
+    -------
+    NeutralLocus
+        ``source="measured"`` (inverted by linear interpolation).
+    """
+    ls = np.asarray(offsets, dtype=float)
+    lo, hi = (float(v) for v in plant.input_range)
+    ys = [
+        _measure(
+            plant,
+            neutral_input(
+                x,
+                frequency,
+                u_range=(lo, hi),
+                cycles=cycles,
+                sample_time=plant.sample_time,
+                u_hat=u_hat,
+            ),
+            settle,
+        )
+        for x in ls
+    ]
+    return NeutralLocus(ls, np.asarray(ys), source="measured")

@@ -1,0 +1,957 @@
+"""The three identifiers of :mod:`preisach.identify`, each returning a model and a report.
+
+* :func:`identify_fod` - Mayergoyz: FOD grid -> Everett table ``E = (y(a, a) - y(a, b)) / 2``
+  (C++), gaps filled by a documented rule, optional projection to ``mu >= 0``;
+* :func:`identify_surface` - the thesis's square-root FOD surface (section 3.3.2, Eq 3.2),
+  tabulated on a fine grid;
+* :func:`identify_lsq` - least squares on every sample of arbitrary recordings, ``mu >= 0`` and a
+  smoothness penalty chosen by cross-validation (:mod:`preisach.identify.lsq`).
+
+All three accept :class:`~preisach.Recording` objects (anything with ``t``, ``u``, ``y`` in s, V,
+V); the first two also accept :class:`~preisach.identify.FODData` (the FOD curves already
+found).  Each returns ``(PreisachModel, IdentificationReport)``; the report lists the data used,
+the residuals (max and RMS in volts and in percent of the output range), warnings, and the
+method's own details (FOD coverage, surface parameters, projection, cross-validation curve).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Optional, Union
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .. import _core
+from ..model import PreisachModel
+from .fod_finder import FODData, find_fod_curves
+from .lsq import (
+    InitialState,
+    LsqDetails,
+    check_policy,
+    identify_lsq_core,
+    weights_matrix,
+)
+from .surface_fit import SurfaceFitResult, fit_sqrt_surface
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+__all__ = [
+    "DataUsage",
+    "IdentificationReport",
+    "ProjectionSummary",
+    "Residuals",
+    "identify_fod",
+    "identify_lsq",
+    "identify_surface",
+    "project_nonnegative",
+    "weight_density",
+]
+
+Data = Union[FODData, Any, Sequence[Any]]
+
+
+# ------------------------------------------------------------------------------------------
+# report
+# ------------------------------------------------------------------------------------------
+@dataclass
+class Residuals:
+    """Residual statistics of a model against some data (volts and % of the output range).
+
+    Attributes
+    ----------
+    name : str
+        What was compared (an experiment, or ``"FOD nodes"``).
+    n : int
+        Number of values compared.
+    max_error, rms_error : float
+        ``max |e|`` and ``sqrt(mean e^2)`` (V), ``e`` = model - measurement.
+    output_range : float
+        Range (V) the percentages refer to.
+    """
+
+    name: str
+    n: int
+    max_error: float
+    rms_error: float
+    output_range: float
+
+    @property
+    def max_pct(self) -> float:
+        """``max_error`` in % of ``output_range``."""
+        return 100.0 * self.max_error / self.output_range
+
+    @property
+    def rms_pct(self) -> float:
+        """``rms_error`` in % of ``output_range``."""
+        return 100.0 * self.rms_error / self.output_range
+
+    @classmethod
+    def of(cls, name: str, e: NDArray[np.float64], output_range: float) -> Residuals:
+        """Statistics of the errors ``e`` (V)."""
+        e = np.asarray(e, dtype=float)
+        return cls(
+            name,
+            int(e.size),
+            float(np.max(np.abs(e))) if e.size else 0.0,
+            float(np.sqrt(np.mean(e * e))) if e.size else 0.0,
+            float(output_range),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly form."""
+        return {
+            "name": self.name,
+            "n": self.n,
+            "max_error": self.max_error,
+            "rms_error": self.rms_error,
+            "output_range": self.output_range,
+            "max_pct": self.max_pct,
+            "rms_pct": self.rms_pct,
+        }
+
+
+@dataclass
+class DataUsage:
+    """Which data an identification used.
+
+    Attributes
+    ----------
+    name : str
+        Experiment name (``experiment`` metadata, or ``"recording k"``).
+    n_samples : int
+        Samples in the recording.
+    n_used : int
+        Samples the identification used: fitted samples (lsq) or samples on used FOD curves.
+    note : str
+        Details (curves used/rejected, burn-in, ...).
+    """
+
+    name: str
+    n_samples: int
+    n_used: int
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly form."""
+        return dict(self.__dict__)
+
+
+@dataclass
+class ProjectionSummary:
+    """How much the projection to ``mu >= 0`` changed the table (all masses in volts).
+
+    Attributes
+    ----------
+    n_negative : int
+        Cells with negative mass before.
+    negative_mass : float
+        Sum of the negative masses before (V, <= 0).
+    mass_moved : float
+        ``sum |w' - w|`` over the cells (V).
+    total_mass : float
+        ``sum |w|`` before (V).
+    max_node_change, rms_node_change : float
+        Largest and RMS change of the Everett nodes (V); outputs move by at most twice the
+        largest.
+    kept : str
+        What was kept exactly: ``"y_min and y_max"`` or ``"y_min"``.
+    converged : bool
+        Whether the projection converged to its tolerance.
+    sweeps : int
+        Sweeps of Hildreth's method.
+    """
+
+    n_negative: int
+    negative_mass: float
+    mass_moved: float
+    total_mass: float
+    max_node_change: float
+    rms_node_change: float
+    kept: str
+    converged: bool
+    sweeps: int
+
+    @property
+    def fraction_moved(self) -> float:
+        """``mass_moved / total_mass`` (0 for an empty table)."""
+        return self.mass_moved / self.total_mass if self.total_mass > 0 else 0.0
+
+    @classmethod
+    def of(cls, r: _core.ProjectionResult) -> ProjectionSummary:
+        """From the C++ result."""
+        return cls(
+            int(r.n_negative),
+            float(r.negative_mass),
+            float(r.mass_moved),
+            float(r.total_mass),
+            float(r.max_node_change),
+            float(r.rms_node_change),
+            "y_min and y_max" if r.kept_y_max else "y_min",
+            bool(r.converged),
+            int(r.sweeps),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly form."""
+        return {**self.__dict__, "fraction_moved": self.fraction_moved}
+
+
+@dataclass
+class IdentificationReport:
+    """What an identifier did and how well the model fits.
+
+    Attributes
+    ----------
+    method : str
+        ``"fod"``, ``"surface"`` or ``"lsq"``.
+    model : PreisachModel
+        The identified model.
+    data : list of DataUsage
+        Recordings (or FOD data) used.
+    residuals : list of Residuals
+        Per recording: the model simulated on the recording's input (burn-in policy of
+        :func:`preisach.verify.verify`).  Empty when only FOD data were given.
+    node_residuals : Residuals or None
+        fod/surface: model FOD outputs against the measured FOD nodes.
+    warnings : list of str
+    fod : FODData or None
+        The FOD curves found (merged over the recordings).
+    surface_fit : SurfaceFitResult or None
+        surface: the square-root fit (Table 3.1-style parameters, fit errors).
+    projection : ProjectionSummary or None
+        fod with ``project=True``: the mass moved.
+    lsq : LsqDetails or None
+        lsq: cross-validation curve, chosen lambda, ...
+    negative_cells : int
+        Cells of the final table with negative mass (not in Mp when > 0).
+    elapsed : float
+        Wall-clock seconds of the identification.
+    """
+
+    method: str
+    model: PreisachModel
+    data: list[DataUsage] = field(default_factory=list)
+    residuals: list[Residuals] = field(default_factory=list)
+    node_residuals: Optional[Residuals] = None
+    warnings: list[str] = field(default_factory=list)
+    fod: Optional[FODData] = field(default=None, repr=False)
+    surface_fit: Optional[SurfaceFitResult] = field(default=None, repr=False)
+    projection: Optional[ProjectionSummary] = None
+    lsq: Optional[LsqDetails] = field(default=None, repr=False)
+    negative_cells: int = 0
+    elapsed: float = 0.0
+
+    def summary(self) -> str:
+        """Readable multi-line report."""
+        m = self.model
+        names = {
+            "fod": "Mayergoyz (FOD grid -> Everett table)",
+            "surface": "square-root FOD surface (thesis Eq 3.2)",
+            "lsq": "least squares on every sample",
+        }
+        lines = [
+            f"identification: {names.get(self.method, self.method)}",
+            f"  model: {m!r}",
+            f"  levels: {m.levels.size} from {m.u_min:.6g} to {m.u_max:.6g} V; "
+            + (
+                "in Mp (all cell masses >= 0)"
+                if self.negative_cells == 0
+                else f"{self.negative_cells} cells with negative mass (not in Mp)"
+            ),
+            f"  time: {self.elapsed:.3f} s",
+            "  data:",
+        ]
+        for d in self.data:
+            lines.append(
+                f"    {d.name}: {d.n_used} of {d.n_samples} samples used"
+                + (f"; {d.note}" if d.note else "")
+            )
+        if self.fod is not None:
+            n = self.fod.levels.size
+            lines.append(
+                f"  FOD nodes measured: {int(np.count_nonzero(self.fod.count))} of "
+                f"{n * (n + 1) // 2}"
+            )
+        if self.surface_fit is not None:
+            sf = self.surface_fit
+            lines.append("  surface parameters (Table 3.1 layout):")
+            lines += ["    " + ln for ln in sf.table().splitlines()]
+            lines.append(
+                f"  surface fit: rms {sf.rmse:.4g} V, max {sf.max_error:.4g} V over "
+                f"{sf.n_points} FOD points"
+            )
+        if self.projection is not None:
+            p = self.projection
+            lines.append(
+                f"  projection to mu >= 0: {p.n_negative} negative cells (sum "
+                f"{p.negative_mass:.4g} V); moved {p.mass_moved:.4g} V = "
+                f"{100 * p.fraction_moved:.3g} % of the total mass {p.total_mass:.4g} V; "
+                f"max node change {p.max_node_change:.3g} V; kept {p.kept}"
+                + ("" if p.converged else " (did not converge)")
+            )
+        if self.lsq is not None:
+            q = self.lsq
+            lines.append(
+                f"  least squares: {q.n_samples} samples fitted ({q.n_skipped} not: "
+                f"burn-in/delay), {q.n_params} parameters, {q.n_zero} masses at 0, "
+                f"initial state '{q.initial_state}', delay {q.delay}"
+            )
+            lines.append(
+                f"  smoothness lambda by {q.folds}-fold CV over time blocks: chosen "
+                f"{q.chosen_lambda:.3g}; fit rms {q.fit_rms:.4g} V"
+            )
+            lines.append("    lambda     CV rms (V)")
+            for lv, cv in zip(q.lambdas, q.cv_rms):
+                mark = "  <-" if lv == q.chosen_lambda else ""
+                lines.append(f"    {lv:<10.3g} {cv:.5g}{mark}")
+        if self.node_residuals is not None:
+            r = self.node_residuals
+            lines.append(
+                f"  residuals at the FOD nodes: max {r.max_error:.4g} V "
+                f"({r.max_pct:.3f} %), rms {r.rms_error:.4g} V ({r.rms_pct:.3f} %) of "
+                f"{r.output_range:.4g} V, {r.n} nodes"
+            )
+        if self.residuals:
+            lines.append("  residuals on the recordings (model simulated on their inputs):")
+            lines.append(
+                f"    {'experiment':<24} {'max (V)':>10} {'rms (V)':>10} {'max %':>8} {'rms %':>8}"
+            )
+            for r in self.residuals:
+                lines.append(
+                    f"    {r.name[:24]:<24} {r.max_error:>10.4g} {r.rms_error:>10.4g} "
+                    f"{r.max_pct:>8.3f} {r.rms_pct:>8.3f}"
+                )
+        if self.warnings:
+            lines.append("  warnings:")
+            lines += [f"    - {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly form (no arrays of samples)."""
+        out: dict[str, Any] = {
+            "method": self.method,
+            "model": repr(self.model),
+            "levels": self.model.levels.tolist(),
+            "y_min": self.model.y_min,
+            "y_max": self.model.y_max,
+            "negative_cells": self.negative_cells,
+            "elapsed": self.elapsed,
+            "data": [d.to_dict() for d in self.data],
+            "residuals": [r.to_dict() for r in self.residuals],
+            "node_residuals": None
+            if self.node_residuals is None
+            else self.node_residuals.to_dict(),
+            "warnings": list(self.warnings),
+            "projection": None if self.projection is None else self.projection.to_dict(),
+            "lsq": None if self.lsq is None else self.lsq.to_dict(),
+        }
+        if self.surface_fit is not None:
+            sf = self.surface_fit
+            out["surface"] = {
+                **sf.surface.to_dict(),
+                "rmse": sf.rmse,
+                "max_error": sf.max_error,
+                "root_sum_sq_error": sf.root_sum_sq_error,
+                "n_points": sf.n_points,
+            }
+        return out
+
+    def plot(self, *, fig: Figure | None = None) -> Figure:
+        """Draw the identification: FOD data and model, weight density, kappa, CV curve.
+
+        Six panels (:func:`preisach.identify.plots.plot_report`): the FOD data with the model's
+        FOD curves (fod/surface) or the cross-validation curve (lsq), the FOD surface in
+        (alpha, beta) and (r, s), the density v in both, and kappa.  Returns the Figure.
+        """
+        from .plots import plot_report
+
+        return plot_report(self, fig=fig)
+
+
+# ------------------------------------------------------------------------------------------
+# helpers
+# ------------------------------------------------------------------------------------------
+def _recordings(data: Any) -> list[Any]:
+    if all(hasattr(data, a) for a in ("t", "u", "y")) and not isinstance(data, np.ndarray):
+        return [data]
+    try:
+        recs = list(data)
+    except TypeError:
+        raise TypeError(
+            f"expected a recording (t, u, y) or a sequence of them, got {type(data).__name__}"
+        ) from None
+    if not recs:
+        raise ValueError("no recordings given")
+    for k, r in enumerate(recs):
+        if not all(hasattr(r, a) for a in ("t", "u", "y")):
+            raise TypeError(
+                f"recordings[{k}]: expected a recording with t, u, y, got {type(r).__name__}"
+            )
+    return recs
+
+
+def _name(rec: Any, k: int) -> str:
+    meta = getattr(rec, "metadata", None) or {}
+    for key in ("experiment", "name"):
+        if key in meta and str(meta[key]):
+            return str(meta[key])
+    return f"recording {k}"
+
+
+def _unique_names(recs: Sequence[Any]) -> list[str]:
+    names = [_name(r, k) for k, r in enumerate(recs)]
+    seen: dict[str, int] = {}
+    out = []
+    for n in names:
+        if names.count(n) > 1:
+            seen[n] = seen.get(n, 0) + 1
+            out.append(f"{n} #{seen[n]}")
+        else:
+            out.append(n)
+    return out
+
+
+def _levels_arg(
+    levels: ArrayLike | int | None, lo: float, hi: float
+) -> Optional[NDArray[np.float64]]:
+    if levels is None:
+        return None
+    if np.ndim(levels) == 0:
+        n = int(levels)  # type: ignore[arg-type]
+        if n < 2:
+            raise ValueError(f"levels: need at least 2 levels, got {n}")
+        return np.linspace(lo, hi, n)
+    lv = np.asarray(levels, dtype=float)
+    if lv.ndim != 1 or lv.size < 2 or not np.all(np.isfinite(lv)) or np.any(np.diff(lv) <= 0):
+        raise ValueError("levels: need a finite, strictly increasing 1-D array of >= 2 levels (V)")
+    return lv
+
+
+def _merge_fod(parts: list[FODData]) -> FODData:
+    """Count-weighted merge of FOD grids on the same levels (pooled spread)."""
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    cnt = np.zeros_like(first.count)
+    s1 = np.zeros_like(first.y_grid)
+    s2 = np.zeros_like(first.y_grid)
+    for p in parts:
+        c = p.count.astype(float)
+        m = np.where(p.count > 0, p.y_grid, 0.0)
+        sd = np.where(p.count >= 2, p.spread, 0.0)
+        cnt += p.count
+        s1 += c * m
+        s2 += (c - 1).clip(min=0) * sd * sd + c * m * m
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(cnt > 0, s1 / np.maximum(cnt, 1), np.nan)
+        var = np.where(cnt >= 2, (s2 - cnt * mean * mean) / np.maximum(cnt - 1, 1), np.nan)
+    spread = np.sqrt(np.clip(var, 0.0, None))
+    curves = [c for p in parts for c in p.curves]
+    return FODData(
+        levels=first.levels,
+        y_grid=mean,
+        count=cnt.astype(np.int64),
+        spread=spread,
+        curves=curves,
+        direction=first.direction,
+        u_min=min(p.u_min for p in parts),
+        u_max=max(p.u_max for p in parts),
+        saturation_tol=first.saturation_tol,
+        reversal_tol=first.reversal_tol,
+        level_tol=first.level_tol,
+        levels_source=first.levels_source + f" (merged over {len(parts)} recordings)",
+        n_samples=sum(p.n_samples for p in parts),
+    )
+
+
+def _fod_data(
+    data: Data, levels: ArrayLike | int | None, finder_options: dict[str, Any]
+) -> tuple[FODData, list[Any], list[str], list[DataUsage]]:
+    if isinstance(data, FODData):
+        if levels is not None:
+            raise ValueError(
+                "levels: not used with FODData (its levels are fixed); find the "
+                "curves again with find_fod_curves(..., levels=...)"
+            )
+        if data.direction != "descending":
+            raise ValueError(
+                "FODData: the Mayergoyz identifiers need first-order descending "
+                "curves (find_fod_curves), got first-order reversal curves"
+            )
+        n_used = sum(c.stop - c.turn + 1 for c in data.used_curves)
+        only = [
+            DataUsage(
+                "FOD data",
+                data.n_samples,
+                n_used,
+                f"{len(data.used_curves)} FOD curves used, {len(data.rejected_curves)} rejected",
+            )
+        ]
+        return data, [], [], only
+    recs = _recordings(data)
+    names = _unique_names(recs)
+    lo = min(float(np.min(r.u)) for r in recs)
+    hi = max(float(np.max(r.u)) for r in recs)
+    lv = _levels_arg(levels, lo, hi)
+    parts: list[FODData] = []
+    usage: list[DataUsage] = []
+    for name, rec in zip(names, recs):
+        opts = dict(finder_options)
+        opts.setdefault("u_min", lo)
+        opts.setdefault("u_max", hi)
+        fd = find_fod_curves(rec, levels=lv, **opts)
+        if lv is None:
+            lv = fd.levels  # every later recording on the first one's grid
+        parts.append(fd)
+        used = fd.used_curves
+        usage.append(
+            DataUsage(
+                name,
+                fd.n_samples,
+                sum(c.stop - c.turn + 1 for c in used),
+                f"{len(used)} FOD curves used, {len(fd.rejected_curves)} rejected",
+            )
+        )
+    merged = _merge_fod(parts)
+    if not merged.used_curves:
+        reasons = "; ".join(sorted({c.reason for c in merged.curves}))[:500]
+        raise ValueError(
+            "no usable first-order descending curve was found in the recordings"
+            + (f" ({reasons})" if reasons else "")
+        )
+    return merged, recs, names, usage
+
+
+def _fod_warnings(fd: FODData) -> list[str]:
+    out = []
+    rej = [c for c in fd.curves if not c.used]
+    off = [c for c in rej if c.first_order]
+    if off:
+        out.append(
+            f"{len(off)} first-order curves turned between grid levels and were not used "
+            "(see fod.report())"
+        )
+    n = fd.levels.size
+    missing = n * (n + 1) // 2 - int(np.count_nonzero(np.tril(fd.count)))
+    if missing:
+        out.append(f"{missing} of {n * (n + 1) // 2} FOD nodes were not measured")
+    return out
+
+
+def _node_residuals(model: PreisachModel, fd: FODData, output_range: float) -> Residuals:
+    """Model FOD outputs y = y_min + 2 E(a, u_min) - 2 E(a, b) against the measured nodes."""
+    a, b = np.meshgrid(fd.levels, fd.levels, indexing="ij")
+    mask = (fd.count > 0) & (b <= a)
+    aa, bb = a[mask], b[mask]
+    y = (
+        model.y_min
+        + 2.0 * model.everett(aa, np.full_like(aa, model.u_min))
+        - 2.0 * model.everett(aa, bb)
+    )
+    return Residuals.of("FOD nodes", y - fd.y_grid[mask], output_range)
+
+
+def _recording_residuals(
+    model: PreisachModel,
+    recs: Sequence[Any],
+    names: Sequence[str],
+    initial_state: InitialState,
+    delay: int,
+) -> tuple[list[Residuals], list[str]]:
+    from ..verify import verify
+
+    if not recs:
+        return [], []
+    table = verify(model, recs, initial_state=initial_state, delay=delay, names=names)
+    res = [
+        Residuals(r.experiment, r.n_samples, r.max_error, r.rms_error, r.output_range)
+        for r in table.rows
+    ]
+    warn = [
+        f"{r.experiment}: the model's state is not exact on this recording (it never reaches "
+        f"u_min or u_max); its residuals include an unknown constant offset"
+        for r in table.rows
+        if not r.exact_state
+    ]
+    return res, warn
+
+
+def _negative_cells(model: PreisachModel) -> int:
+    """Cells with negative mass, beyond round-off (1e-12 of the total absolute mass)."""
+    w = np.tril(model.cell_weights())
+    return int(np.count_nonzero(w < -1e-12 * float(np.abs(w).sum())))
+
+
+def _output_range(fd: FODData, recs: Sequence[Any]) -> float:
+    if recs:
+        return max(float(np.ptp(r.y)) for r in recs)
+    y = fd.y_grid[np.isfinite(fd.y_grid)]
+    return float(np.ptp(y)) if y.size else 1.0
+
+
+# ------------------------------------------------------------------------------------------
+# public functions
+# ------------------------------------------------------------------------------------------
+def weight_density(model: PreisachModel) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Split a model's weight as in thesis Eq 2.12-2.14: density ``v`` and ``kappa``.
+
+    Parameters
+    ----------
+    model : PreisachModel
+        The model (its cell masses are the mixed second differences of its Everett table).
+
+    Returns
+    -------
+    v : ndarray, shape (n-1, n-1)
+        Density (V/V^2) of the off-diagonal cells: ``v[i, j]`` is the mass of
+        ``[levels[i], levels[i+1]] x [levels[j], levels[j+1]]`` divided by its area, ``j < i``;
+        NaN on and above the diagonal.
+    kappa : ndarray, shape (n-1,)
+        ``kappa[i]`` (V/V): the mass of the diagonal half-cell ``i`` divided by its width - half
+        the initial slope dy/dbeta of the FOD curves there (Eq 2.14).  It includes the
+        half-cell's share of ``v`` (O(h) smaller).
+    """
+    v, kappa = _core.weight_density(model.table)
+    return np.asarray(v), np.asarray(kappa)
+
+
+def project_nonnegative(
+    model: PreisachModel, *, keep_y_max: bool = True, tol: float = 1e-12
+) -> tuple[PreisachModel, ProjectionSummary]:
+    """Project a model to the nearest one in Mp (all cell masses >= 0), in least squares.
+
+    ``minimise sum (E'(i, j) - E(i, j))^2`` over the nodes ``j < i`` subject to every cell mass
+    ``w' >= 0``, with ``y_min`` kept and, when ``keep_y_max`` and possible (``E(u_max, u_min) >=
+    0``), ``y_max = y(u_max, u_max)`` kept too.  Least squares in ``E`` because every model
+    output is a signed sum of Everett values: outputs move by at most twice the largest node
+    change, and a negative cell is absorbed by its neighbours.  Solved in C++ by Hildreth's
+    method; masses left within ``tol`` (relative to the total mass) of zero are set to zero, so
+    ``y_max`` is kept to within about ``tol`` times the total mass, and the cell masses of the
+    result are >= 0 up to round-off.
+
+    Parameters
+    ----------
+    model : PreisachModel
+        The model to project.
+    keep_y_max : bool
+        Keep ``y_max`` (the corner node) fixed.
+    tol : float
+        Relative tolerance of the projection.
+
+    Returns
+    -------
+    model : PreisachModel
+        The projected model (the input model when it is already in Mp).
+    summary : ProjectionSummary
+        Cells that were negative, mass moved (absolute and as a fraction of the total), node
+        changes, what was kept.
+    """
+    r = _core.project_nonnegative(model.table, keep_y_max, float(tol))
+    meta = dict(model.metadata)
+    meta["projected"] = True
+    out = PreisachModel(r.table, name=model.name, metadata=meta, out_of_range=model.out_of_range)
+    return out, ProjectionSummary.of(r)
+
+
+def identify_fod(
+    data: Data,
+    levels: ArrayLike | int | None = None,
+    *,
+    project: bool = False,
+    gaps: str = "fill",
+    name: str = "",
+    initial_state: InitialState = "burn-in",
+    delay: int = 0,
+    **finder_options: Any,
+) -> tuple[PreisachModel, IdentificationReport]:
+    """Mayergoyz identification: FOD curves -> Everett table (thesis §2.6, Eq 2.12-2.14).
+
+    Parameters
+    ----------
+    data : Recording, sequence of Recording, or FODData
+        Recordings holding FOD curves (e.g. the FOD sweep of Fig 3.17), or FOD data found
+        already.  Several recordings are merged node by node (count-weighted means).
+    levels : int or array_like, optional
+        FOD grid: a number of equally spaced levels over the recordings' input range, or the
+        levels (V).  Default: inferred from the turning values (see
+        :func:`~preisach.identify.find_fod_curves`).
+    project : bool
+        Project the table to the nearest one with all cell masses >= 0
+        (:func:`project_nonnegative`); the report gives the mass moved.
+    gaps : {"fill", "raise"}
+        Nodes the FOD curves did not reach: fill them (a missing end point ``y(a, u_min)`` with
+        ``y_min``; every other node by the smoothest density, see ``mayergoyz`` in
+        ``cpp/include/preisach/identify.hpp``) or raise :class:`ValueError` naming the node.
+    name : str
+        Name of the model.
+    initial_state : str or State
+        Policy for the residuals on the recordings (see :func:`preisach.verify.verify`).
+    delay : int
+        Output delay (samples) for the residuals on the recordings.
+    **finder_options
+        Passed to :func:`~preisach.identify.find_fod_curves` (``saturation_tol``,
+        ``reversal_tol``, ``level_tol``, ``u_min``, ``u_max``).
+
+    Returns
+    -------
+    model : PreisachModel
+        On the FOD levels; ``y_min`` is the mean measured FOD end point.
+    report : IdentificationReport
+    """
+    t0 = time.perf_counter()
+    if gaps not in ("fill", "raise"):
+        raise ValueError(f"gaps: expected 'fill' or 'raise', got {gaps!r}")
+    check_policy(initial_state)
+    fd, recs, names, usage = _fod_data(data, levels, finder_options)
+    table, filled, n_col0, n_ymin, rows = _core.mayergoyz(fd.levels, fd.y_grid, gaps)
+    warnings = _fod_warnings(fd)
+    if len(filled):
+        warnings.append(
+            f"{len(filled)} Everett nodes were filled ({n_col0} FOD end points set to "
+            f"y_min, {len(filled) - n_col0} by the smoothest density)"
+        )
+        n_nodes = fd.levels.size * (fd.levels.size - 1) // 2
+        if len(filled) > n_nodes // 2:
+            warnings.append(
+                f"most of the table ({len(filled)} of {n_nodes} nodes) is extrapolated, "
+                "not measured: these recordings hold few FOD curves; identify_lsq "
+                "uses every sample of any excitation"
+            )
+    if len(rows):
+        warnings.append(
+            f"FOD curves without a turning point reading (alpha = "
+            f"{', '.join(f'{fd.levels[i]:.6g}' for i in rows)} V): their readings were "
+            "not used"
+        )
+    meta: dict[str, Any] = {
+        "source": "identify_fod",
+        "n_ymin": int(n_ymin),
+        "filled_nodes": int(len(filled)),
+    }
+    model = PreisachModel(table, name=name, metadata=meta)
+    proj = None
+    if project:
+        model, proj = project_nonnegative(model)
+        model.metadata["source"] = "identify_fod"
+    neg = _negative_cells(model)
+    if neg and not project:
+        w = np.tril(model.cell_weights())
+        warnings.append(
+            f"{neg} cells have negative mass (sum {float(w[w < 0].sum()):.4g} V): the "
+            "model is not in Mp; project=True gives the nearest model that is"
+        )
+    rng = _output_range(fd, recs)
+    node_res = _node_residuals(model, fd, rng)
+    res, w2 = _recording_residuals(model, recs, names, initial_state, delay)
+    report = IdentificationReport(
+        "fod",
+        model,
+        usage,
+        res,
+        node_res,
+        warnings + w2,
+        fd,
+        None,
+        proj,
+        None,
+        neg,
+        time.perf_counter() - t0,
+    )
+    return model, report
+
+
+def identify_surface(
+    data: Data,
+    levels: ArrayLike | int | None = None,
+    *,
+    table_levels: ArrayLike | int = 201,
+    frequency: float = math.nan,
+    refine: bool = True,
+    name: str = "",
+    initial_state: InitialState = "burn-in",
+    delay: int = 0,
+    **finder_options: Any,
+) -> tuple[PreisachModel, IdentificationReport]:
+    """Square-root FOD surface identification (thesis §3.3.2, Eq 3.1-3.2), tabulated.
+
+    The FOD grid is found as for :func:`identify_fod`, fitted by
+    :func:`~preisach.identify.fit_sqrt_surface` (per-curve Nelder-Mead fits, quadratic
+    polynomials in alpha, the constrained surface of Eq 3.2, and a joint least-squares
+    refinement), and the surface is tabulated on ``table_levels``.
+
+    Parameters
+    ----------
+    data : Recording, sequence of Recording, or FODData
+        As for :func:`identify_fod`.
+    levels : int or array_like, optional
+        FOD grid (as for :func:`identify_fod`).
+    table_levels : int or array_like
+        Grid on which the surface is tabulated (default 201 levels over the FOD range).
+    frequency : float
+        Frequency (Hz) of the identification input, stored in the surface.
+    refine : bool
+        Run the joint refinement of the surface parameters (beyond the thesis).
+    name, initial_state, delay, **finder_options
+        As for :func:`identify_fod`.
+
+    Returns
+    -------
+    model : PreisachModel
+    report : IdentificationReport
+        ``surface_fit`` holds the Table 3.1-style parameters and fit errors.
+    """
+    t0 = time.perf_counter()
+    check_policy(initial_state)
+    fd, recs, names, usage = _fod_data(data, levels, finder_options)
+    fit = fit_sqrt_surface(fd.levels, fd.y_grid, frequency=frequency, refine=refine)
+    model = PreisachModel.from_surface(fit.surface, table_levels, name=name)
+    model.metadata["source"] = "identify_surface"
+    warnings = _fod_warnings(fd) + [f"surface fit: {w}" for w in fit.warnings]
+    neg = _negative_cells(model)
+    if neg:
+        warnings.append(
+            f"{neg} cells of the tabulated surface have negative mass (the thesis "
+            "reports such cells for its 2 and 4 Hz surfaces)"
+        )
+    rng = _output_range(fd, recs)
+    node_res = _node_residuals(model, fd, rng)
+    res, w2 = _recording_residuals(model, recs, names, initial_state, delay)
+    report = IdentificationReport(
+        "surface",
+        model,
+        usage,
+        res,
+        node_res,
+        warnings + w2,
+        fd,
+        fit,
+        None,
+        None,
+        neg,
+        time.perf_counter() - t0,
+    )
+    return model, report
+
+
+def identify_lsq(
+    recordings: Any,
+    levels: ArrayLike | int = 41,
+    *,
+    lambdas: Union[str, Sequence[float]] = "auto",
+    folds: int = 5,
+    initial_state: InitialState = "burn-in",
+    delay: int = 0,
+    nonnegative: bool = True,
+    u_range: Optional[tuple[float, float]] = None,
+    name: str = "",
+) -> tuple[PreisachModel, IdentificationReport]:
+    """Least-squares identification of the Everett table from arbitrary recordings.
+
+    Every sample is used: the model output is linear in the table, so the cell masses ``w``
+    (``mu >= 0`` is ``w >= 0``) and ``y_min`` are fitted by penalised least squares with a
+    smoothness penalty whose weight is chosen by K-fold cross-validation over contiguous time
+    blocks.  See :mod:`preisach.identify.lsq` for the formulation and the initial-state policy.
+
+    Parameters
+    ----------
+    recordings : Recording or sequence of Recording
+        Any excitation (sines, noise, minor loops, FOD sweeps); objects with ``t``, ``u``,
+        ``y`` (s, V, V).
+    levels : int or array_like
+        Table grid: a number of equally spaced levels over ``u_range`` (default 41), or the
+        levels (V).  At most 81 levels (the normal equations are dense).
+    lambdas : "auto" or sequence of float
+        Smoothness weights to try (dimensionless).  ``"auto"``: ``1e-8, 1e-6, ..., 1e2`` and
+        then the decades on either side of the best of those (8 values).
+    folds : int
+        Number of contiguous time blocks for cross-validation (>= 2).
+    initial_state : {"burn-in", "negative", "positive", "anhysteretic"} or State
+        Initial-state policy (default: discard each recording's burn-in).
+    delay : int
+        Output delay in samples: ``y[k + delay]`` answers ``u[k]`` (1 for the yan9a data).
+    nonnegative : bool
+        Impose ``mu >= 0`` (all cell masses >= 0).
+    u_range : (float, float), optional
+        Input range (V) of the table; default the recordings' input range.
+    name : str
+        Name of the model.
+
+    Returns
+    -------
+    model : PreisachModel
+    report : IdentificationReport
+        ``lsq`` holds the cross-validation curve and the chosen lambda.
+    """
+    t0 = time.perf_counter()
+    recs = _recordings(recordings)
+    names = _unique_names(recs)
+    for nm, r in zip(names, recs):
+        for a in ("u", "y"):
+            arr = np.asarray(getattr(r, a), dtype=float)
+            if arr.ndim != 1 or arr.size < 2:
+                raise ValueError(f"{nm}: {a} must be a 1-D array of at least 2 samples")
+            if not np.all(np.isfinite(arr)):
+                k = int(np.argmax(~np.isfinite(arr)))
+                raise ValueError(f"{nm}: {a}[{k}] is not finite")
+    if u_range is None:
+        lo = min(float(np.min(r.u)) for r in recs)
+        hi = max(float(np.max(r.u)) for r in recs)
+    else:
+        lo, hi = (float(v) for v in u_range)
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise ValueError(f"input range [{lo}, {hi}] V is empty: the input must vary")
+    lv = _levels_arg(levels, lo, hi)
+    assert lv is not None
+    w, y_min, details, usage_raw, warnings = identify_lsq_core(
+        recs,
+        lv,
+        lambdas=lambdas,
+        folds=folds,
+        initial_state=initial_state,
+        delay=delay,
+        nonnegative=nonnegative,
+        names=names,
+    )
+    model = PreisachModel.from_weights(lv, weights_matrix(lv, w), y_min=y_min, name=name)
+    model.metadata = {
+        "source": "identify_lsq",
+        "chosen_lambda": details.chosen_lambda,
+        "folds": details.folds,
+        "initial_state": details.initial_state,
+        "delay": details.delay,
+    }
+    usage = [
+        DataUsage(
+            u["name"],
+            u["n_samples"],
+            u["n_used"],
+            f"fitted from sample {u['first_used']}"
+            + ("" if u["exact_state"] else " (state not exact)"),
+        )
+        for u in usage_raw
+    ]
+    res, _ = _recording_residuals(model, recs, names, initial_state, details.delay)
+    neg = _negative_cells(model)
+    report = IdentificationReport(
+        "lsq",
+        model,
+        usage,
+        res,
+        None,
+        warnings,
+        None,
+        None,
+        None,
+        details,
+        neg,
+        time.perf_counter() - t0,
+    )
+    return model, report

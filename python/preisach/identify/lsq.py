@@ -1,0 +1,701 @@
+"""Least-squares identification of the Everett table from arbitrary recordings.
+
+The output of a Preisach model is linear in its Everett table: for a given input history every
+sample is ``y_t = r_t . theta`` with ``theta = (E(i, j) for j < i, y_min)`` (see
+``cpp/include/preisach/regressor.hpp``).  So the table can be fitted to *any* recording - sines,
+noise, minor loops, FOD sweeps - using every sample, not only the grid crossings of FOD curves.
+
+Formulation
+-----------
+* **Parameters.**  The relay masses ``w`` of the grid cells (``n (n - 1) / 2`` of them: the
+  off-diagonal cells and the diagonal half-cells that hold kappa) and the output at negative
+  saturation ``y_min`` (V, free).  The Everett table is ``E = C w`` (cumulative sums over the
+  triangle ``T(alpha, beta)``), so ``mu >= 0`` is simply ``w >= 0``.
+* **Normal equations** are accumulated in C++ (``preisach._core.normal_equations``, GIL
+  released) per cross-validation fold, in the Everett nodes, and mapped to ``(w, y_min)`` here:
+  ``G_w = C^T G_E C``.  The ``samples x parameters`` matrix is never formed.
+* **Smoothness.**  ``lambda * s * ||R w||^2`` with ``R`` the second differences of the density
+  ``v = w / (h_i h_j)`` along alpha and along beta, and of ``kappa = w / h`` along the diagonal,
+  scaled by the mean level spacing so that every row is in volts (the same roughness the gap
+  fill of the Mayergoyz identifier minimises).  ``s = trace(G_w) / trace(R^T R)`` makes
+  ``lambda`` dimensionless.
+* **Bounds.**  ``w >= 0`` (``nonnegative=True``): the quadratic programme is solved exactly by
+  block principal pivoting (Kim and Park, 2011) on the reduced Hessian (``y_min`` eliminated by
+  its Schur complement), warm-started along the ``lambda`` path.
+* **lambda by K-fold cross-validation over contiguous time blocks.**  The fitted samples of all
+  recordings, in order, are split into ``folds`` contiguous blocks of equal size; for every
+  ``lambda`` the model is fitted without one block and scored on it, with the input history
+  always complete (a block is left out of the residuals, not out of the simulation).  The
+  ``lambda`` with the lowest cross-validated RMS error is used for the final fit on all samples.
+  ``lambdas="auto"`` tries ``1e-8, 1e-6, ..., 1e2`` and then the decades on either side of the
+  best of those; the held-out error of a block comes from the fold's normal equations,
+  ``theta^T G_k theta - 2 theta^T b_k + y_k^T y_k``, so no sample is simulated twice.
+
+Initial state
+-------------
+A recording's initial state is unknown.  Policies (``initial_state``):
+
+* ``"burn-in"`` (default): every recording is simulated from negative saturation and the samples
+  before its *burn-in end* are not fitted.  The burn-in ends at the first sample where the input
+  reaches ``u_min`` or ``u_max`` of the table (the state is then exact: a saturation) or, if
+  earlier, where the input has visited both its own minimum and maximum: from then on every
+  relay the recording can still switch is set by the input alone (wiping-out), and the relays it
+  never switches (``alpha`` above its maximum and ``beta`` below its minimum) are assumed at -1.
+  That assumption is exact when the recording reaches either end of the table's range (always
+  true for the recording(s) that set the default levels); otherwise the report warns.
+* ``"negative"``, ``"positive"``, ``"anhysteretic"`` or a :class:`~preisach.State`: every sample
+  is fitted from that state.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Optional, Union
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.linalg import LinAlgError, cho_factor, cho_solve
+
+from .. import _core
+from ..model import PreisachModel, State
+
+__all__ = [
+    "LsqDetails",
+    "burn_in_end",
+    "roughness_matrix",
+    "solve_nonnegative_qp",
+]
+
+#: Coarse grid of the dimensionless smoothness weight lambda for ``lambdas="auto"``: every two
+#: decades; the decades next to the best one are then tried as well.
+COARSE_LAMBDAS: tuple[float, ...] = (1e-8, 1e-6, 1e-4, 1e-2, 1.0, 1e2)
+#: Largest table identify_lsq accepts (the Gram matrices are dense, (n(n-1)/2 + 1)^2 doubles).
+MAX_LEVELS = 81
+
+InitialState = Union[str, State]
+_POLICIES = ("burn-in", "negative", "positive", "anhysteretic")
+
+
+@dataclass
+class LsqDetails:
+    """How a least-squares identification went (part of the identification report).
+
+    Attributes
+    ----------
+    lambdas : ndarray
+        Smoothness weights tried (dimensionless, see the module docstring).
+    cv_rms : ndarray
+        Cross-validated RMS error (V) for each ``lambda``.
+    cv_fold_rms : ndarray, shape (len(lambdas), folds)
+        RMS error (V) on each held-out block.
+    chosen_lambda : float
+        The ``lambda`` of the final fit (lowest ``cv_rms``).
+    folds : int
+        Number of contiguous blocks.
+    fold_sizes : ndarray of int
+        Fitted samples per block.
+    n_samples : int
+        Samples fitted (after burn-in and delay).
+    n_skipped : int
+        Samples not fitted (burn-in, and the last ``delay`` samples of each recording).
+    n_params : int
+        Cell masses plus the offset.
+    n_zero : int
+        Cell masses at the bound ``w = 0`` in the final fit.
+    fit_rms : float
+        RMS residual (V) of the final fit on all fitted samples.
+    penalty_scale : float
+        ``s = trace(G_w) / trace(R^T R)``.
+    nonnegative : bool
+        Whether ``w >= 0`` was imposed.
+    initial_state : str
+        The policy used.
+    delay : int
+        Output delay (samples) used.
+    solver_iterations : int
+        Block-pivoting iterations of the final fit.
+    timings : dict of str to float
+        Wall-clock seconds per stage (``normal_equations``, ``transform``, ``cross_validation``,
+        ``final_fit``).
+    """
+
+    lambdas: NDArray[np.float64]
+    cv_rms: NDArray[np.float64]
+    cv_fold_rms: NDArray[np.float64]
+    chosen_lambda: float
+    folds: int
+    fold_sizes: NDArray[np.int64]
+    n_samples: int
+    n_skipped: int
+    n_params: int
+    n_zero: int
+    fit_rms: float
+    penalty_scale: float
+    nonnegative: bool
+    initial_state: str
+    delay: int
+    solver_iterations: int
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-friendly form."""
+        return {
+            "lambdas": self.lambdas.tolist(),
+            "cv_rms": self.cv_rms.tolist(),
+            "cv_fold_rms": self.cv_fold_rms.tolist(),
+            "chosen_lambda": self.chosen_lambda,
+            "folds": self.folds,
+            "fold_sizes": self.fold_sizes.tolist(),
+            "n_samples": self.n_samples,
+            "n_skipped": self.n_skipped,
+            "n_params": self.n_params,
+            "n_zero": self.n_zero,
+            "fit_rms": self.fit_rms,
+            "penalty_scale": self.penalty_scale,
+            "nonnegative": self.nonnegative,
+            "initial_state": self.initial_state,
+            "delay": self.delay,
+            "solver_iterations": self.solver_iterations,
+            "timings": dict(self.timings),
+        }
+
+
+# ------------------------------------------------------------------------------------------
+# initial state and burn-in
+# ------------------------------------------------------------------------------------------
+def burn_in_end(u: ArrayLike, u_min: float, u_max: float) -> tuple[int, bool]:
+    """First sample from which a recording's output is determined by its input (see module doc).
+
+    Parameters
+    ----------
+    u : array_like
+        Input samples (V).
+    u_min, u_max : float
+        Input range of the table (V); inputs outside are clamped by the model.
+
+    Returns
+    -------
+    index : int
+        Samples ``index, index + 1, ...`` are determined (their state no longer depends on the
+        initial state, except through relays the recording never switches).
+    exact : bool
+        ``True`` when the input reached ``u_min`` or ``u_max`` by ``index`` (a saturation: the
+        state is exact); ``False`` when only the recording's own extremes were visited.
+    """
+    uu = np.asarray(u, dtype=float)
+    if uu.ndim != 1 or uu.size == 0:
+        raise ValueError("u: expected a non-empty 1-D array of input samples (V)")
+    sat = np.nonzero((uu <= u_min) | (uu >= u_max))[0]
+    k_sat = int(sat[0]) if sat.size else uu.size
+    k_own = max(int(np.argmin(uu)), int(np.argmax(uu)))  # first visits of both own extremes
+    if k_sat <= k_own:
+        return k_sat, True
+    return k_own, False
+
+
+def initial_state_for(
+    model_or_range: PreisachModel | tuple[float, float], policy: InitialState
+) -> State:
+    """Return the state a policy simulates from (``"burn-in"`` starts at negative saturation)."""
+    if isinstance(model_or_range, PreisachModel):
+        lo, hi = model_or_range.u_min, model_or_range.u_max
+    else:
+        lo, hi = (float(v) for v in model_or_range)
+    if isinstance(policy, State):
+        return policy
+    if policy in ("burn-in", "negative"):
+        return State.negative_saturation(lo, hi)
+    if policy == "positive":
+        return State.positive_saturation(lo, hi)
+    if policy == "anhysteretic":
+        l0 = 0.0 if lo <= 0.0 <= hi else 0.5 * (lo + hi)
+        return State.neutral(lo, hi, l0)
+    raise ValueError(f"initial_state: expected one of {_POLICIES} or a State, got {policy!r}")
+
+
+def check_policy(policy: InitialState) -> str:
+    """Name of an initial-state policy (``"state"`` for an explicit State); raises on bad input."""
+    if isinstance(policy, State):
+        return "state"
+    if policy not in _POLICIES:
+        raise ValueError(f"initial_state: expected one of {_POLICIES} or a State, got {policy!r}")
+    return str(policy)
+
+
+# ------------------------------------------------------------------------------------------
+# linear algebra on the grid
+# ------------------------------------------------------------------------------------------
+def _cells(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Cells (i, j), j <= i <= n - 2, in row-major order of the lower triangle."""
+    i, j = np.tril_indices(n - 1)
+    return i, j
+
+
+def _nodes(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Everett nodes (a, b), b < a, in row-major order (index a (a - 1) / 2 + b)."""
+    return np.tril_indices(n, -1)
+
+
+def cumulative_matrix(n: int) -> NDArray[np.float64]:
+    """``C`` with ``E_nodes = C @ w_cells``: ``E(a, b) = sum of w(k, l), b <= l <= k <= a - 1``."""
+    a, b = _nodes(n)
+    k, l = _cells(n)  # noqa: E741
+    return ((k[None, :] <= a[:, None] - 1) & (l[None, :] >= b[:, None])).astype(float)
+
+
+def _apply_Tt(X: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    """``T^T X`` for ``X`` over ``(Everett nodes, y_min)`` rows: ``C^T`` by cumulative sums.
+
+    ``(C^T x)(k, l) = sum of x(a, b) over a >= k + 1, b <= l``.
+    """
+    a, b = _nodes(n)
+    ci, cj = _cells(n)
+    nn = a.size
+    full = np.zeros((n, n, X.shape[1]))
+    full[a, b] = X[:nn]
+    np.cumsum(full, axis=1, out=full)  # b <= l
+    full = np.flip(np.cumsum(np.flip(full, 0), axis=0), 0)  # a >= k + 1
+    out = np.empty((ci.size + 1, X.shape[1]))
+    out[:-1] = full[ci + 1, cj]
+    out[-1] = X[nn]
+    return out
+
+
+def _transform_gram(G: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    """``T^T G T`` for a symmetric Gram matrix over ``(Everett nodes, y_min)``."""
+    H = _apply_Tt(G, n)  # T^T G
+    return _apply_Tt(np.ascontiguousarray(H.T), n)  # T^T (T^T G)^T = T^T G T
+
+
+def roughness_matrix(levels: ArrayLike) -> NDArray[np.float64]:
+    """Roughness operator ``R`` on the cell masses (rows in volts; see the module docstring).
+
+    Rows: second differences of ``v = w / (h_i h_j)`` along alpha and along beta over three
+    off-diagonal cells, and of ``kappa = w / h_i`` along the diagonal, each multiplied by
+    ``hbar^2`` (``hbar`` for kappa), ``hbar`` the mean level spacing.
+
+    Parameters
+    ----------
+    levels : array_like, shape (n,)
+        Increasing levels (V).
+
+    Returns
+    -------
+    ndarray, shape (rows, n (n - 1) / 2)
+    """
+    lv = np.asarray(levels, dtype=float)
+    n = lv.size
+    m = n - 1
+    h = np.diff(lv)
+    hbar = (lv[-1] - lv[0]) / m
+    ci, cj = _cells(n)
+    index = -np.ones((m, m), dtype=np.intp)
+    index[ci, cj] = np.arange(ci.size)
+
+    def dens(i: int, j: int) -> float:
+        return float(hbar / h[i] if i == j else hbar * hbar / (h[i] * h[j]))
+
+    rows: list[list[tuple[int, float]]] = []
+    for i in range(m):
+        for j in range(i):
+            if i >= 1 and j + 1 < i and i + 1 < m:
+                rows.append(
+                    [
+                        (index[i - 1, j], dens(i - 1, j)),
+                        (index[i, j], -2 * dens(i, j)),
+                        (index[i + 1, j], dens(i + 1, j)),
+                    ]
+                )
+            if j >= 1 and j + 1 < i:
+                rows.append(
+                    [
+                        (index[i, j - 1], dens(i, j - 1)),
+                        (index[i, j], -2 * dens(i, j)),
+                        (index[i, j + 1], dens(i, j + 1)),
+                    ]
+                )
+    for i in range(1, m - 1):
+        rows.append(
+            [
+                (index[i - 1, i - 1], dens(i - 1, i - 1)),
+                (index[i, i], -2 * dens(i, i)),
+                (index[i + 1, i + 1], dens(i + 1, i + 1)),
+            ]
+        )
+    R = np.zeros((len(rows), ci.size))
+    for r, row in enumerate(rows):
+        for c, v in row:
+            R[r, c] += v
+    return R
+
+
+def solve_nonnegative_qp(
+    H: NDArray[np.float64],
+    g: NDArray[np.float64],
+    free: Optional[NDArray[np.bool_]] = None,
+    max_iter: int = 500,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], int, bool]:
+    """Minimise ``x^T H x / 2 - g^T x`` subject to ``x >= 0`` (``H`` symmetric positive definite).
+
+    Block principal pivoting (Kim and Park, "Fast nonnegative matrix factorization", SIAM J.
+    Sci. Comput. 33, 2011, Algorithm 1, with its backup rule): solve with the bound set ``B``
+    held at zero, exchange every variable that violates the KKT conditions at once, and fall
+    back to single exchanges when the number of violations stops falling.
+
+    ``H`` is factorised once.  With ``x0 = H^-1 g`` and ``Z = H^-1 E_B`` (columns of ``H^-1``,
+    cached), the solution with ``x_B = 0`` is ``x = x0 - Z nu``, ``Z_B nu = x0_B``, and the
+    gradient on ``B`` is ``-nu``; an exchange costs a few triangular solves and a small dense
+    solve instead of a new factorisation.
+
+    Parameters
+    ----------
+    H : ndarray, shape (m, m)
+        Symmetric positive definite Hessian.
+    g : ndarray, shape (m,)
+        Linear term.
+    free : ndarray of bool, optional
+        Initial free set (warm start); default all free (the unconstrained solution first).
+    max_iter : int
+        Iteration limit.
+
+    Returns
+    -------
+    x : ndarray
+        The minimiser (exactly zero on the bound set).
+    free : ndarray of bool
+        Final free set.
+    iterations : int
+    converged : bool
+        ``False`` if ``max_iter`` was reached (``x`` is then the last iterate clipped at 0).
+    """
+    m = g.size
+    F = np.ones(m, dtype=bool) if free is None else free.copy()
+    fac = cho_factor(H, check_finite=False)
+    x0 = cho_solve(fac, g, check_finite=False)
+    cols: dict[int, NDArray[np.float64]] = {}  # j -> column j of H^-1
+    xscale = float(np.max(np.abs(x0))) if m else 0.0
+    gscale = float(np.max(np.abs(g))) if m else 0.0
+    best, backup = m + 1, 3
+    converged = False
+    x = x0.copy()
+    it = 0
+    while it < max_iter:
+        it += 1
+        bound = np.nonzero(~F)[0]
+        nu = np.zeros(0)
+        if bound.size:
+            missing = [int(j) for j in bound if int(j) not in cols]
+            if missing:
+                E = np.zeros((m, len(missing)))
+                E[missing, np.arange(len(missing))] = 1.0
+                Zm = cho_solve(fac, E, check_finite=False)
+                for k, j in enumerate(missing):
+                    cols[j] = Zm[:, k]
+            Z = np.column_stack([cols[int(j)] for j in bound])
+            S = Z[bound, :]
+            try:
+                nu = cho_solve(cho_factor(S, check_finite=False), x0[bound], check_finite=False)
+            except LinAlgError:
+                nu = np.linalg.lstsq(S, x0[bound], rcond=None)[0]
+            x = x0 - Z @ nu
+            x[bound] = 0.0
+        else:
+            x = x0.copy()
+        grad_b = -nu  # gradient H x - g on the bound set
+        bad = F & (x < -1e-12 * xscale)
+        if bound.size:
+            bad[bound] = grad_b < -1e-12 * gscale
+        nbad = int(np.count_nonzero(bad))
+        if nbad == 0:
+            converged = True
+            break
+        if nbad < best:
+            best, backup = nbad, 3
+            F ^= bad
+        elif backup > 0:
+            backup -= 1
+            F ^= bad
+        else:
+            k = int(np.nonzero(bad)[0][-1])
+            F[k] = not F[k]
+    np.maximum(x, 0.0, out=x)
+    x[~F] = 0.0
+    return x, F, it, converged
+
+
+# ------------------------------------------------------------------------------------------
+# the identifier
+# ------------------------------------------------------------------------------------------
+@dataclass
+class _Prepared:
+    levels: NDArray[np.float64]
+    gram: NDArray[np.float64]  # (K, p, p) in (w, y_min)
+    rhs: NDArray[np.float64]  # (K, p)
+    yy: NDArray[np.float64]  # (K,)
+    count: NDArray[np.int64]  # (K,)
+    n_skipped: int
+    usage: list[dict[str, Any]]
+    warnings: list[str]
+    timings: dict[str, float]
+
+
+def _prepare(
+    recordings: Sequence[Any],
+    levels: NDArray[np.float64],
+    folds: int,
+    policy: InitialState,
+    delay: int,
+    names: Sequence[str],
+) -> _Prepared:
+    lo, hi = float(levels[0]), float(levels[-1])
+    pol = check_policy(policy)
+    warnings: list[str] = []
+    usage: list[dict[str, Any]] = []
+    spans: list[tuple[int, int]] = []
+    for name, rec in zip(names, recordings):
+        u = np.asarray(rec.u, dtype=float)
+        y = np.asarray(rec.y, dtype=float)
+        n_pairs = u.size - delay
+        if n_pairs < 1:
+            raise ValueError(f"{name}: {u.size} samples are too few for delay = {delay}")
+        start, exact = 0, True
+        if pol == "burn-in":
+            start, exact = burn_in_end(u[:n_pairs], lo, hi)
+            if not exact:
+                warnings.append(
+                    f"{name}: the input stays inside the table range ({float(u.min()):.6g} .. "
+                    f"{float(u.max()):.6g} V of {lo:.6g} .. {hi:.6g} V) and never saturates; "
+                    "relays it never switches are assumed at -1 (a constant output offset)"
+                )
+        used = n_pairs - start  # >= 1: the burn-in ends at a sample of the recording
+        spans.append((start, n_pairs))
+        usage.append(
+            {
+                "name": name,
+                "n_samples": int(u.size),
+                "n_used": int(used),
+                "first_used": int(start),
+                "exact_state": bool(exact),
+            }
+        )
+    total = sum(b - a for a, b in spans)
+    if total < folds:
+        raise ValueError(
+            f"only {total} samples to fit after the burn-in, fewer than folds = "
+            f"{folds}; use longer recordings or another initial_state"
+        )
+    # contiguous blocks over the concatenated fitted samples
+    t0 = time.perf_counter()
+    n_nodes = levels.size * (levels.size - 1) // 2
+    p = n_nodes + 1
+    G = np.zeros((folds, p, p))
+    b = np.zeros((folds, p))
+    yy = np.zeros(folds)
+    cnt = np.zeros(folds, dtype=np.int64)
+    g0 = 0
+    for (start, n_pairs), rec in zip(spans, recordings):
+        u = np.ascontiguousarray(rec.u[:n_pairs], dtype=float)
+        y = np.ascontiguousarray(rec.y[delay : delay + n_pairs], dtype=float)
+        fold = -np.ones(n_pairs, dtype=np.int32)
+        k = np.arange(n_pairs - start)
+        fold[start:] = ((g0 + k) * folds // total).astype(np.int32)
+        g0 += n_pairs - start
+        s0 = initial_state_for((lo, hi), policy)
+        Gr, br, yr, _, cr, _ = _core.normal_equations(levels, u, y, s0, fold, folds, "clamp")
+        G += Gr
+        b += br
+        yy += yr
+        cnt += cr
+    t1 = time.perf_counter()
+    # to (w, y_min): G_w = T^T G T with T = blockdiag(C, 1), by cumulative sums
+    Gw = np.stack([_transform_gram(G[k], levels.size) for k in range(folds)])
+    bw = np.stack([_apply_Tt(b[k][:, None], levels.size)[:, 0] for k in range(folds)])
+    t2 = time.perf_counter()
+    n_skipped = sum(int(r.u.size) for r in recordings) - total
+    return _Prepared(
+        levels,
+        Gw,
+        bw,
+        yy,
+        cnt,
+        n_skipped,
+        usage,
+        warnings,
+        {"normal_equations": t1 - t0, "transform": t2 - t1},
+    )
+
+
+@dataclass
+class _Reduced:
+    """Normal equations with y_min eliminated (Schur complement), before the penalty."""
+
+    H: NDArray[np.float64]  # (m, m)
+    g: NDArray[np.float64]  # (m,)
+    hwc: NDArray[np.float64]  # (m,) coupling of the masses to y_min
+    hcc: float  # number of samples (the y_min diagonal)
+    gc: float
+
+
+def _reduce(H: NDArray[np.float64], g: NDArray[np.float64]) -> _Reduced:
+    m = H.shape[0] - 1
+    hwc = H[:m, m].copy()
+    hcc = float(H[m, m])
+    Hr = H[:m, :m] - np.outer(hwc, hwc / hcc)
+    gr = g[:m] - hwc * (g[m] / hcc)
+    return _Reduced(Hr, gr, hwc, hcc, float(g[m]))
+
+
+def _fit(
+    red: _Reduced,
+    P: NDArray[np.float64],
+    lam: float,
+    nonneg: bool,
+    free: Optional[NDArray[np.bool_]],
+) -> tuple[NDArray[np.float64], Optional[NDArray[np.bool_]], int, bool]:
+    """Penalised fit of theta = (w, y_min) from a reduced system."""
+    m = red.g.size
+    Hr = red.H + lam * P
+    Hr[np.diag_indices(m)] += 1e-13 * float(np.trace(Hr)) / m  # keeps Hr definite
+    if nonneg:
+        w, free_out, it, ok = solve_nonnegative_qp(Hr, red.g, free)
+    else:
+        try:
+            w = cho_solve(cho_factor(Hr, check_finite=False), red.g, check_finite=False)
+        except LinAlgError:
+            w = np.asarray(np.linalg.lstsq(Hr, red.g, rcond=None)[0], dtype=np.float64)
+        free_out, it, ok = None, 1, True
+    c = (red.gc - red.hwc @ w) / red.hcc
+    return np.append(w, c), free_out, it, ok
+
+
+def identify_lsq_core(
+    recordings: Sequence[Any],
+    levels: NDArray[np.float64],
+    *,
+    lambdas: Union[str, Sequence[float]],
+    folds: int,
+    initial_state: InitialState,
+    delay: int,
+    nonnegative: bool,
+    names: Sequence[str],
+) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
+    """Cell masses, y_min and the details of a least-squares identification (no model built).
+
+    Returns ``(w (cells, V), y_min (V), details, usage, warnings)``; see :func:`identify_lsq`.
+    """
+    if levels.size > MAX_LEVELS:
+        raise ValueError(
+            f"levels: at most {MAX_LEVELS} levels for least squares (the normal "
+            f"equations are dense), got {levels.size}"
+        )
+    if levels.size < 3:
+        raise ValueError(f"levels: need at least 3 levels, got {levels.size}")
+    if isinstance(folds, bool) or int(folds) != folds or folds < 2:
+        raise ValueError(f"folds: need an integer >= 2 for cross-validation, got {folds!r}")
+    folds = int(folds)
+    auto = isinstance(lambdas, str)
+    if auto and lambdas != "auto":
+        raise ValueError(f"lambdas: expected 'auto' or a sequence of values >= 0, got {lambdas!r}")
+    lam = np.array(COARSE_LAMBDAS if auto else list(lambdas), dtype=np.float64)
+    if lam.ndim != 1 or lam.size == 0 or not np.all(np.isfinite(lam)) or np.any(lam < 0):
+        raise ValueError("lambdas: need 'auto' or a non-empty sequence of finite values >= 0")
+    if isinstance(delay, bool) or int(delay) != delay or delay < 0:
+        raise ValueError(f"delay: need an integer number of samples >= 0, got {delay!r}")
+    delay = int(delay)
+    prep = _prepare(recordings, levels, folds, initial_state, delay, names)
+    R = roughness_matrix(levels)
+    P = R.T @ R
+    Gtot = prep.gram.sum(axis=0)
+    btot = prep.rhs.sum(axis=0)
+    m = P.shape[0]
+    trP = float(np.trace(P))
+    scale = float(np.trace(Gtot[:m, :m])) / trP if trP > 0 else 0.0
+    Ps = P * scale
+    t0 = time.perf_counter()
+    reduced = [_reduce(Gtot - prep.gram[k], btot - prep.rhs[k]) for k in range(folds)]
+    sse: dict[float, NDArray[np.float64]] = {}
+    free_sets: dict[float, list[Optional[NDArray[np.bool_]]]] = {}
+
+    def evaluate(values: Iterable[float]) -> None:
+        for lv in values:
+            lv = float(lv)
+            if lv in sse:
+                continue
+            near = min(
+                free_sets,
+                key=lambda x: abs(math.log10(x + 1e-300) - math.log10(lv + 1e-300)),
+                default=None,
+            )
+            warm = free_sets[near] if near is not None else [None] * folds
+            row = np.zeros(folds)
+            frees: list[Optional[NDArray[np.bool_]]] = []
+            for k in range(folds):
+                theta, fr, _, _ = _fit(reduced[k], Ps, lv, nonnegative, warm[k])
+                frees.append(fr)
+                Gk, bk = prep.gram[k], prep.rhs[k]
+                row[k] = max(float(theta @ (Gk @ theta) - 2.0 * theta @ bk + prep.yy[k]), 0.0)
+            sse[lv] = row
+            free_sets[lv] = frees
+
+    evaluate(lam)
+    if auto:  # refine: the decades on either side of the best coarse value
+        tried = sorted(sse)
+        best_lv = min(tried, key=lambda x: float(sse[x].sum()))
+        evaluate([best_lv / 10.0, best_lv * 10.0])
+    lam = np.array(sorted(sse))
+    cv_sse = np.array([sse[x] for x in lam])
+    t1 = time.perf_counter()
+    cv_rms = np.sqrt(cv_sse.sum(axis=1) / prep.count.sum())
+    fold_rms = np.sqrt(cv_sse / np.maximum(prep.count, 1)[None, :])
+    best = int(np.argmin(cv_rms))
+    theta, free, iters, ok = _fit(
+        _reduce(Gtot, btot), Ps, float(lam[best]), nonnegative, free_sets[float(lam[best])][0]
+    )
+    t2 = time.perf_counter()
+    warnings = list(prep.warnings)
+    if not ok:
+        warnings.append(
+            "the non-negative least-squares solver hit its iteration limit; the "
+            "masses were clipped at zero"
+        )
+    if best in (0, lam.size - 1) and lam.size > 1:
+        edge = "smallest" if best == 0 else "largest"
+        warnings.append(
+            f"cross-validation chose the {edge} lambda tried ({lam[best]:.3g}); "
+            "extend the lambdas grid"
+        )
+    sse_fit = float(theta @ Gtot @ theta - 2.0 * theta @ btot + prep.yy.sum())
+    n_fit = int(prep.count.sum())
+    w = theta[:-1]
+    details = LsqDetails(
+        lambdas=lam,
+        cv_rms=cv_rms,
+        cv_fold_rms=fold_rms,
+        chosen_lambda=float(lam[best]),
+        folds=folds,
+        fold_sizes=prep.count.copy(),
+        n_samples=n_fit,
+        n_skipped=prep.n_skipped,
+        n_params=m + 1,
+        n_zero=int(np.count_nonzero(w == 0.0)),
+        fit_rms=math.sqrt(max(sse_fit, 0.0) / n_fit),
+        penalty_scale=scale,
+        nonnegative=bool(nonnegative),
+        initial_state=check_policy(initial_state),
+        delay=delay,
+        solver_iterations=int(iters),
+        timings={**prep.timings, "cross_validation": t1 - t0, "final_fit": t2 - t1},
+    )
+    return w, float(theta[-1]), details, prep.usage, warnings
+
+
+def weights_matrix(levels: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Arrange cell masses as the ``(n-1, n-1)`` lower-triangular matrix of ``from_weights``."""
+    n = levels.size
+    W = np.zeros((n - 1, n - 1))
+    ci, cj = _cells(n)
+    W[ci, cj] = w
+    return W

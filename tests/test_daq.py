@@ -1,0 +1,263 @@
+"""The DAQ layer: virtual SS15 rig, trial runner, safety, interrupts, Comedi (replayed)."""
+
+import _thread
+
+import numpy as np
+import pytest
+from preisach import PreisachModel, Recording, daq
+from preisach.calibration import SS15_CHANNEL_B
+from preisach.errors import DeviceError, TrialInterrupted
+
+TS = 1e-3
+
+
+@pytest.fixture(scope="module")
+def model():
+    return PreisachModel.builtin("ss15-1hz", levels=101)
+
+
+def sweep(n=3000, amp=90.0, cycles=3):
+    return amp * np.sin(2 * np.pi * cycles * np.arange(n) / n)
+
+
+def test_virtual_rig_applies_eq_b1b_and_one_sample_causality(model, tmp_path):
+    rig = daq.virtual_ss15(model, model.anhysteretic_state(), adc_noise=0.0, adc_bits=24)
+    u = sweep()
+    res = daq.run_trial(rig, u, tmp_path / "r.csv", sample_time=TS)
+    assert res.complete and res.samples == u.size and not res.realtime
+    rec = Recording.load(tmp_path / "r.csv")
+    assert rec.metadata["end_status"] == "complete"
+    assert rec.column_names == ("t", "u", "y", "u_cmd", "u_dac", "y_adc", "lateness")
+    np.testing.assert_array_equal(rec.t, np.arange(u.size) * TS)
+    # the output channel is Eq B.1b: the DAC gets its inverse, the rig's amplifier applies it
+    assert rec.metadata["output_gain"] == SS15_CHANNEL_B.gain == -14.12
+    assert rec.metadata["output_offset"] == SS15_CHANNEL_B.offset == -0.02
+    np.testing.assert_allclose(rec.u_dac if hasattr(rec, "u_dac") else rec.columns["u_dac"],
+                               SS15_CHANNEL_B.inverse(u), rtol=1e-12)
+    np.testing.assert_allclose(rec.u, u, rtol=1e-12, atol=1e-12)
+    assert rig.actuator_voltage == pytest.approx(u[-1])
+    # y[k] is read before u[k] is written: it is the model's response to u[..k-1]
+    y_model = model.simulate(u, state=model.anhysteretic_state()).output
+    np.testing.assert_allclose(rec.y[1:], y_model[:-1], atol=1e-6)
+    assert rec.y[0] == pytest.approx(model.readout(model.anhysteretic_state()), abs=1e-6)
+
+
+def test_adc_is_quantised_noisy_and_seeded(model, tmp_path):
+    u = sweep(1000)
+    recs = []
+    for i, seed in enumerate((5, 5, 6)):
+        rig = daq.virtual_ss15(model, seed=seed)  # 14 bit over +/-5 V, 0.5 mV rms
+        daq.run_trial(rig, u, tmp_path / f"{i}.csv", sample_time=TS)
+        recs.append(Recording.load(tmp_path / f"{i}.csv"))
+    lsb = 10.0 / 2**14
+    codes = (recs[0].y + 5.0) / lsb
+    np.testing.assert_allclose(codes, np.round(codes), atol=1e-6)
+    np.testing.assert_array_equal(recs[0].y, recs[1].y)
+    assert not np.array_equal(recs[0].y, recs[2].y)
+    noise = recs[0].y - recs[2].y
+    assert 0.4e-3 < np.std(noise) / np.sqrt(2) < 0.8e-3
+
+
+def test_safety_clamp_slew_and_ramp_after_abort(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+    # a 300 V step (clamped to 135 V and slew limited), then NaN at sample 150
+    ctl = daq.CallbackController(lambda k, t, y: float("nan") if k == 150 else 300.0, 400)
+    safety = daq.SafetyLimits(slew_rate=10_000.0, ramp_rate=20_000.0)
+    res = daq.run_trial(rig, ctl, tmp_path / "s.csv", sample_time=TS, safety=safety)
+    assert res.end_status.startswith(
+        "aborted: controller returned a non-finite output at sample 150")
+    assert res.final_output == 0.0 and rig.actuator_voltage == pytest.approx(0.0, abs=1e-12)
+    rec = Recording.load(tmp_path / "s.csv")
+    assert len(rec) == res.samples + res.ramp_samples == 151 + 7
+    assert np.all(np.abs(np.diff(rec.u)) <= 20.0 + 1e-9)
+    assert rec.u.max() == pytest.approx(135.0) and rec.u[-1] == 0.0
+    assert rec.metadata["end_reason"].startswith("controller returned a non-finite output")
+    np.testing.assert_allclose(np.diff(rec.t), TS)
+
+
+def test_out_of_range_reading_aborts(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+    res = daq.run_trial(rig, np.full(2000, 100.0), tmp_path / "y.csv", sample_time=TS,
+                        safety=daq.SafetyLimits(y_max=2.0))
+    assert "outside the safety limits [-inf, 2] V at sample" in res.end_status
+    rec = Recording.load(tmp_path / "y.csv")
+    assert rec.y[res.samples - 1] > 2.0 and res.samples < 2000
+    # the ADC saturating (a reading at the end of its range) reads NaN and aborts too
+    rig2 = daq.virtual_ss15(model, input=daq.channel("V_out", 1, (-1.0, 1.0)))
+    res2 = daq.run_trial(rig2, np.full(2000, 100.0), tmp_path / "sat.csv", sample_time=TS)
+    assert "read NaN (converter out of range [-1, 1] V)" in res2.end_status
+    assert res2.dropped >= 1
+    Recording.load(tmp_path / "sat.csv")
+
+
+def test_callback_exception_is_reraised_after_the_file_is_finished(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+
+    def ctl(k, t, y):
+        if k == 40:
+            raise KeyError("no such setpoint")
+        return 20.0
+
+    with pytest.raises(KeyError, match="no such setpoint"):
+        daq.run_trial(rig, daq.CallbackController(ctl, 100), tmp_path / "e.csv", sample_time=TS)
+    rec = Recording.load(tmp_path / "e.csv")
+    status = rec.metadata["end_status"]
+    assert status.startswith("aborted: controller raised at sample 40: KeyError")
+    assert len(rec) >= 41 and rec.u[-1] == 0.0
+    assert not rig.busy
+
+
+def test_keyboard_interrupt_requests_a_stop_and_finishes_the_file(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+    calls = []
+
+    def ctl(k, t, y):
+        calls.append(k)
+        if k == 300:
+            _thread.interrupt_main()  # Ctrl-C arrives in the main thread, which waits
+        return 30.0
+
+    with pytest.raises(TrialInterrupted) as info:
+        daq.run_trial(rig, daq.CallbackController(ctl, 10**7), tmp_path / "i.csv",
+                      sample_time=TS, poll=0.01)
+    res = info.value.result
+    assert res.end_status == "interrupted" and 300 < res.samples < 10**7
+    rec = Recording.load(tmp_path / "i.csv")
+    assert rec.metadata["end_status"] == "interrupted"
+    assert len(rec) == res.samples + res.ramp_samples
+    np.testing.assert_array_equal(rec.t, np.arange(len(rec)) * TS)
+    assert rec.u[-1] == 0.0
+
+
+def test_pi_controller_regulates_the_rig(model, tmp_path):
+    rig = daq.virtual_ss15(model, seed=1)
+    ff = np.full(4000, 20.0)
+    pi = daq.PIController(kp=1.5 * 14.12, ki=30 * 14.12, setpoint=1.0, sample_time=TS,
+                          feedforward=ff, enable_at=1000, average=25)
+    res = daq.run_trial(rig, pi, tmp_path / "pi.csv", sample_time=TS)
+    rec = Recording.load(tmp_path / "pi.csv")
+    assert res.complete
+    assert abs(rec.y[:1000].mean() - 1.0) > 0.05      # open loop: not at the setpoint
+    assert rec.y[-500:].mean() == pytest.approx(1.0, abs=0.005)
+    assert abs(pi.error) < 0.01
+
+
+def test_realtime_pacing_reports_lateness(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+    res = daq.run_trial(rig, np.zeros(200), tmp_path / "rt.csv", sample_time=TS, realtime=True,
+                        safety=daq.SafetyLimits(max_missed_deadlines=-1))
+    rec = Recording.load(tmp_path / "rt.csv")
+    assert res.realtime and rec.metadata["realtime"] == 1
+    assert res.elapsed >= 0.19  # paced: 200 samples take at least 199 periods
+    late = rec.columns["lateness"]
+    assert np.all(late >= 0) and res.max_lateness == late.max()
+    assert res.missed_deadlines == rec.metadata["missed_deadlines"]
+
+
+def test_files_are_never_clobbered_and_metadata_is_checked(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+    p = tmp_path / "x.csv"
+    daq.run_trial(rig, np.zeros(10), p, sample_time=TS, metadata={"experiment": "a", "n": 3})
+    with pytest.raises(FileExistsError):
+        daq.run_trial(rig, np.zeros(10), p, sample_time=TS)
+    daq.run_trial(rig, np.zeros(5), p, sample_time=TS, overwrite=True)
+    assert len(Recording.load(p)) == 5
+    with pytest.raises(ValueError, match="reserved"):
+        daq.run_trial(rig, np.zeros(5), tmp_path / "z.csv", sample_time=TS,
+                      metadata={"end_status": "x"})
+    with pytest.raises(ValueError, match="built for a sample time of 0.001"):
+        daq.run_trial(rig, np.zeros(5), tmp_path / "w.csv", sample_time=2e-3)
+
+
+def test_rig_state_and_reset(model):
+    rig = daq.virtual_ss15(model, "negative_saturation", adc_noise=0.0)
+    assert rig.state == model.negative_saturation()
+    assert rig.plant_output == pytest.approx(model.y_min)
+    rig.reset(model.positive_saturation())
+    assert rig.plant_output == pytest.approx(model.y_max)
+    assert rig.simulated and "virtual SS15" in rig.description
+
+
+COMEDI_PROTOCOL = """
+    open /dev/comedi0 -> 1
+    board_name -> pci-multiq
+    find_subdevice_by_type 2 0 -> 1
+    get_n_channels 1 -> 4
+    find_range 1 1 -10 10 -> 0
+    get_maxdata 1 1 -> 4095
+    get_subdevice_flags 1 -> 0
+    hardcal_converter 1 1 0 from -> 0 : 1 -10 0 204.75
+    find_subdevice_by_type 1 0 -> 0
+    get_n_channels 0 -> 8
+    find_range 0 1 -5 5 -> 0
+    get_maxdata 0 1 -> 8191
+    get_subdevice_flags 0 -> 0
+    hardcal_converter 0 1 0 to -> 0 : 1 0 -5 0.001220703125
+    # sample 0: read 1 V, write u = 10 V at the actuator
+    data_read 0 1 0 0 -> 0 4915
+    data_write 1 1 0 0 {code0} -> 0
+    # sample 1: read, write u = 20 V
+    data_read 0 1 0 0 -> 0 4915
+    data_write 1 1 0 0 {code1} -> 0
+"""
+
+
+def _dac_code(u):
+    return int(np.round(204.75 * (SS15_CHANNEL_B.inverse(u) + 10)))
+
+
+def test_comedi_protocol_replays_through_a_trial(tmp_path):
+    protocol = COMEDI_PROTOCOL.format(code0=_dac_code(10.0), code1=_dac_code(20.0))
+    dev = daq._core.ComediDevice.replay(protocol, "/dev/comedi0", [daq.ss15_output_channel()],
+                                        [daq.ss15_input_channel()])
+    assert dev.description == "comedi /dev/comedi0 (pci-multiq)"
+    assert dev.conversions == ["hardcal", "hardcal"] and not dev.simulated
+    res = daq.run_trial(dev, [10.0, 20.0], tmp_path / "c.csv", sample_time=TS,
+                        safety=daq.SafetyLimits(max_missed_deadlines=-1))
+    assert res.complete and res.realtime  # a real device is always paced
+    calls = dev.verify_protocol()
+    assert calls[-1] == f"data_write 1 1 0 0 {_dac_code(20.0)}"
+    rec = Recording.load(tmp_path / "c.csv")
+    np.testing.assert_allclose(rec.y, -5 + 4915 * 0.001220703125)
+    # a wrong call is reported with the step, what was expected and what came
+    bad = protocol.replace("find_range 0 1 -5 5", "find_range 0 1 -10 10")
+    with pytest.raises(RuntimeError, match=r"step 11: expected 'find_range 0 1 -10 10', got "
+                                           r"'find_range 0 1 -5 5'"):
+        daq._core.ComediDevice.replay(bad, "/dev/comedi0", [daq.ss15_output_channel()],
+                                      [daq.ss15_input_channel()])
+
+
+def test_comedi_missing_device_names_the_file():
+    with pytest.raises(DeviceError, match="'/dev/comedi_preisach_missing'") as info:
+        daq.comedi_device("/dev/comedi_preisach_missing")
+    assert isinstance(info.value, OSError)
+    msg = "^cannot open Comedi device '/dev/comedi3': No such file"
+    with pytest.raises(DeviceError, match=msg):
+        daq._core.ComediDevice.replay("open /dev/comedi3 -> -1 : No such file or directory",
+                                      "/dev/comedi3", [daq.ss15_output_channel()],
+                                      [daq.ss15_input_channel()])
+
+
+def test_comedi_build_matches_the_library():
+    import ctypes.util
+
+    found = ctypes.util.find_library("comedi") is not None
+    if found:  # CI installs libcomedi-dev, so the backend must be compiled in
+        assert daq.comedi_available()
+
+
+def test_device_plant_runs_the_experiments_like_the_model(model, tmp_path):
+    from preisach.experiments import ModelPlant, closed_loop_test, drift_test, drive_to_state
+
+    rig = daq.virtual_ss15(model, adc_noise=0.0, adc_bits=24)
+    plants = {"model": ModelPlant(model, TS),
+              "rig": daq.DevicePlant(rig, model=model, record_dir=tmp_path)}
+    out = {}
+    for name, plant in plants.items():
+        init = drive_to_state(plant, "a", 1.0, 1.0)
+        out[name] = (init.offset, drift_test(plant, init, 1.6, 0).drift,
+                     closed_loop_test(plant, init, 1.6, 0).nc)
+    np.testing.assert_allclose(out["rig"], out["model"], rtol=1e-5)
+    runs = sorted(tmp_path.glob("run_*.csv"))
+    assert runs and all(Recording.load(p).metadata["end_status"] == "complete" for p in runs)
+    assert plants["rig"].snapshot() == rig.state

@@ -1,0 +1,261 @@
+"""Diagnosis end to end: report schema, figure, augmented model, CLI, residual analysis, errors."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+import preisach
+import pytest
+from preisach import PreisachModel, Recording, SimulationResult
+from preisach.diagnose import (
+    AugmentedModel,
+    DiagnosisReport,
+    FirstOrderInputLag,
+    FractionalDelay,
+    StructuralMode,
+    analyse_residuals,
+    diagnose,
+    load_model,
+)
+from preisach.diagnose.cases import make_case
+from preisach.diagnose.cli import add_parser
+from preisach.diagnose.engine import prepare_recordings
+
+
+@pytest.fixture(scope="module")
+def delay_case():
+    return make_case("delay", seed=21, scale=0.3, effect_size=4.0)
+
+
+@pytest.fixture(scope="module")
+def delay_report(delay_case):
+    model = (
+        delay_case.identify()
+    )  # a few candidates keep this quick; test_diagnose_proof runs them all
+    return diagnose(
+        model,
+        delay_case.recordings,
+        identification=delay_case.identification,
+        candidates=["delay", "creep", "gain_offset", "sensor_drift"],
+    )
+
+
+def test_package_exports():
+    assert preisach.diagnose is diagnose
+    assert preisach.load_model is load_model
+    assert preisach.AugmentedModel is AugmentedModel and preisach.DiagnosisReport is DiagnosisReport
+
+
+def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
+    text = delay_report.to_json(tmp_path / "r.json")
+    d = json.loads((tmp_path / "r.json").read_text())
+    assert d == json.loads(text)
+    assert set(d) == {"verdict", "effects", "rmse_before", "rmse_after"}
+    assert d["verdict"] == "delay"
+    for e in d["effects"]:
+        assert set(e) == {
+            "name",
+            "evidence",
+            "where",
+            "parameters",
+            "heldout_rmse_before",
+            "heldout_rmse_after",
+        }
+        assert e["heldout_rmse_after"] < e["heldout_rmse_before"]
+        for p in e["parameters"].values():
+            assert {"value", "std", "unit"} <= set(p)
+    first = d["effects"][0]
+    assert first["name"] == "delay" and "lags the input by" in first["evidence"]
+    assert set(first["where"]) >= {"recordings", "direction", "near_reversals", "band_Hz"}
+    assert d["rmse_after"] < d["rmse_before"]
+
+
+def test_report_statement_parameters_and_uncertainty(delay_case, delay_report):
+    e = delay_report.effects[0]
+    tau = e.parameters["tau"]
+    assert tau["unit"] == "s" and tau["std"] > 0
+    assert tau["value"] == pytest.approx(delay_case.truth["strength"], rel=0.2)
+    import re
+
+    stated = re.search(r"lags the input by ([0-9.]+) ± ([0-9.]+) ms", e.statement)
+    assert stated is not None
+    assert float(stated.group(1)) == pytest.approx(1e3 * tau["value"], abs=float(stated.group(2)))
+    text = delay_report.summary()
+    assert "verdict: delay" in text and "candidates" in text and "residual RMS" in text
+    det = delay_report.details()
+    json.dumps(det)  # everything is JSON-serialisable
+    assert det["candidates"] and det["before"]["covariates"]
+
+
+def test_plot_returns_a_labelled_figure(delay_report):
+    from matplotlib.figure import Figure
+
+    fig = delay_report.plot()
+    assert isinstance(fig, Figure)
+    axes = [a for a in fig.axes if a.get_visible()]
+    assert len(axes) >= 6
+    for ax in axes:
+        assert ax.get_ylabel()
+    units = " ".join(a.get_xlabel() + a.get_ylabel() for a in axes)
+    for u in ("(s)", "(mV)", "(Hz)", "(V)"):
+        assert u in units
+
+
+def test_augmented_model_round_trip_and_simulation(delay_report, delay_case, tmp_path):
+    aug = delay_report.model
+    assert any(isinstance(b, FractionalDelay) for b in aug.blocks)
+    path = tmp_path / "aug.npz"
+    aug.save(path)
+    back = load_model(path)
+    assert isinstance(back, AugmentedModel) and back == aug
+    u = delay_case.recordings[0].u
+    r1 = aug.simulate(u, aug.negative_saturation())
+    r2 = back.simulate(u, back.negative_saturation())
+    assert isinstance(r1, SimulationResult)
+    np.testing.assert_array_equal(r1.output, r2.output)
+    t, y = r1
+    assert t.shape == y.shape == u.shape
+    with pytest.raises(ValueError, match="not a preisach model"):
+        PreisachModel.load(path)
+
+
+def test_augmented_model_is_the_chain():
+    base = PreisachModel.builtin("ss15-1hz", levels=41)
+    lag = FirstOrderInputLag(1e-3, tau=2e-3)
+    mode = StructuralMode(1e-3, f_n=40.0, zeta=0.05, participation=0.3)
+    aug = AugmentedModel(base, [mode, lag])
+    u = 80 * np.sin(np.linspace(0, 20, 4000))
+    s0 = base.negative_saturation()
+    got = aug.simulate(u, s0)
+    lag.reset(s0.input)
+    x = lag.run(u)
+    yp = base.simulate(x, s0).output
+    mode.reset(base.readout(s0))
+    np.testing.assert_allclose(got.output, mode.run(yp), atol=1e-12)
+    np.testing.assert_allclose(got.extra["preisach_output"], yp, atol=1e-12)
+    # same physics at another sample time
+    half = aug.simulate(u[::2], s0, sample_time=2e-3)
+    assert (
+        np.max(np.abs(half.output[200:] - got.output[::2][200:])) < 0.02
+    )  # after the start-up step
+    with pytest.raises(ValueError, match="outside the model range"):
+        aug.simulate([0.0, 150.0], s0, out_of_range="raise")
+    with pytest.raises(ValueError, match=r"u\[1\] is not finite"):
+        aug.simulate([0.0, np.nan], s0)
+
+
+def test_load_model_reads_both_kinds(tmp_path):
+    m = PreisachModel.builtin("ss15-2hz", levels=21)
+    m.save(tmp_path / "m.npz")
+    assert load_model(tmp_path / "m.npz") == m
+    (tmp_path / "junk.npz").write_bytes(b"not a model")
+    with pytest.raises(ValueError, match="not a readable model file"):
+        load_model(tmp_path / "junk.npz")
+
+
+def test_cli_writes_report_figure_and_model(delay_case, tmp_path, capsys):
+    delay_case.save(tmp_path / "case")
+    model = delay_case.identify()
+    model.save(tmp_path / "model.npz")
+    parser = argparse.ArgumentParser(prog="preisach")
+    add_parser(parser.add_subparsers(dest="command"))
+    recs = [
+        str(p) for p in sorted((tmp_path / "case").glob("*.npz")) if p.name != "identification.npz"
+    ]
+    args = parser.parse_args(
+        [
+            "diagnose",
+            str(tmp_path / "model.npz"),
+            *recs,
+            "--json",
+            str(tmp_path / "r.json"),
+            "--candidates",
+            "delay,creep",
+            "--plot",
+            str(tmp_path / "r.png"),
+            "--save-model",
+            str(tmp_path / "aug.npz"),
+            "--identification",
+            str(tmp_path / "case" / "identification.npz"),
+            "-q",
+        ]
+    )
+    assert args.func(args) == 0
+    assert json.loads((tmp_path / "r.json").read_text())["verdict"] == "delay"
+    assert (tmp_path / "r.png").stat().st_size > 10_000
+    assert isinstance(load_model(tmp_path / "aug.npz"), AugmentedModel)
+    assert capsys.readouterr().out == ""
+    bad = parser.parse_args(
+        ["diagnose", str(tmp_path / "nope.npz"), recs[0], "--json", str(tmp_path / "x.json")]
+    )
+    with pytest.raises(OSError, match="no such file"):
+        bad.func(bad)
+
+
+def _recs_with(effect: str, seed: int = 3):
+    """Recordings of a built-in model with one planted residual (for the residual analysis)."""
+    m = PreisachModel.builtin("ss15-1hz", levels=41)
+    rng = np.random.default_rng(seed)
+    recs = []
+    for k in range(3):
+        t = np.arange(6000) * 1e-3
+        u = -100 + 100 * (1 - np.cos(2 * np.pi * (0.7 + 0.3 * k) * t)) * (0.6 + 0.1 * k)
+        y = m.simulate(u, m.negative_saturation()).output
+        if effect == "delay":
+            y = np.interp(t - 4e-3, t, y)
+        elif effect == "ringing":
+            y = y + 3e-3 * np.sin(2 * np.pi * 43.0 * t)
+        elif effect == "drift":
+            y = y + 5e-3 * t / t[-1]
+        y = y + rng.normal(0, 1e-3, t.size)
+        recs.append(Recording.from_arrays(t=t, u=u, y=y, experiment=f"r{k}"))
+    return m, recs
+
+
+def _analysis(effect: str):
+    m, recs = _recs_with(effect)
+    prep = prepare_recordings(m, recs)
+    pred = [m.simulate(r.u, r.state0).output for r in prep]
+    res = [r.y - p for r, p in zip(prep, pred)]
+    return analyse_residuals(prep, res, pred, 1e-3, u_span=200.0)
+
+
+def test_locate_finds_what_the_residual_follows():
+    a = _analysis("delay")
+    strongest = a.strongest(1)[0]
+    assert (
+        strongest.name in ("model output rate dy/dt", "input rate du/dt") and strongest.eta2 > 0.5
+    )
+    b = _analysis("ringing")
+    assert b.spectrum["peaks"] and abs(b.spectrum["peaks"][0]["f"] - 43.0) < 1.0
+    c = _analysis("drift")
+    assert c.covariates["time"].p_value < 0.01 and c.covariates["time"].eta2 > 0.5
+    n = _analysis("none")
+    assert n.rms == pytest.approx(1e-3, rel=0.1)
+    assert all(cv.eta2 < 0.05 for cv in n.covariates.values())
+    assert "residual RMS" in n.summary()[0]
+
+
+def test_noise_alone_gives_verdict_none():
+    m, recs = _recs_with("none")
+    rep = diagnose(m, recs, candidates=["delay", "gain_offset", "creep"])
+    assert rep.verdict == "none" and rep.effects == []
+    assert rep.rmse_after == pytest.approx(rep.rmse_before)
+
+
+def test_argument_errors():
+    m, recs = _recs_with("none")
+    with pytest.raises(ValueError, match="unknown candidate 'telepathy'"):
+        diagnose(m, recs, candidates=["telepathy"])
+    with pytest.raises(ValueError, match="alpha"):
+        diagnose(m, recs, alpha=2.0)
+    with pytest.raises(ValueError, match="at least one recording"):
+        diagnose(m, [])
+    with pytest.raises(TypeError, match="PreisachModel"):
+        diagnose("ss15-1hz", recs)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="initial_states: expected 3"):
+        diagnose(m, recs, initial_states=["unknown"])
+    with pytest.raises(ValueError, match="cv"):
+        diagnose(m, recs, cv="folds")

@@ -1,0 +1,186 @@
+"""Physics blocks of diagnosis: conventions, steady states, exactness, persistence."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import preisach._core as core
+import pytest
+from preisach import PreisachModel
+from preisach.blocks import make_block
+from preisach.diagnose import (
+    BLOCK_TYPES,
+    Creep,
+    FirstOrderInputLag,
+    FractionalDelay,
+    GainOffset,
+    LevelDependentGain,
+    OutputFeedback,
+    RateDependentPlay,
+    RateDependentWidth,
+    SensorDrift,
+    StructuralMode,
+)
+from preisach.diagnose.blocks import block_from_dict
+
+DT = 1e-3
+
+
+def _examples():
+    return [
+        StructuralMode(DT, f_n=37.62, zeta=0.02, participation=0.5),
+        Creep(DT, taus=[0.02, 0.2, 2.0], weights=[0.01, 0.02, 0.005], gain=1.01),
+        FractionalDelay(DT, tau=2.3e-3),
+        FirstOrderInputLag(DT, tau=1.5e-3),
+        RateDependentPlay(DT, w_ref=0.5, exponent=0.5, v_ref=200.0, tau_v=5e-3),
+        SensorDrift(DT, offset=1e-3, rate=2e-4),
+        LevelDependentGain(DT, c2=0.01, c3=-0.02, x_c=0.0, span=3.5),
+        GainOffset(DT, gain=1.02, offset=-3e-3),
+    ]
+
+
+@pytest.mark.parametrize("blk", _examples(), ids=lambda b: type(b).__name__)
+def test_run_in_pieces_equals_one_run_and_step(blk):
+    rng = np.random.default_rng(1)
+    x = np.cumsum(rng.normal(0, 0.05, 1500))
+    blk.reset(float(x[0]))
+    whole = blk.run(x)
+    blk.reset(float(x[0]))
+    parts = np.concatenate([blk.run(x[:700]), blk.run(x[700:1201]), blk.run(x[1201:])])
+    np.testing.assert_allclose(parts, whole, rtol=0, atol=1e-12)
+    blk.reset(float(x[0]))
+    steps = np.array([blk.step(v) for v in x[:50]])
+    np.testing.assert_allclose(steps, whole[:50], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("blk", _examples(), ids=lambda b: type(b).__name__)
+def test_reset_is_a_steady_state(blk):
+    y0 = blk.reset(0.7)
+    y = blk.run(np.full(300, 0.7))
+    if isinstance(blk, SensorDrift):  # drifts with time by design
+        np.testing.assert_allclose(y, 0.7 + 1e-3 + 2e-4 * DT * np.arange(1, 301), atol=1e-15)
+    else:
+        np.testing.assert_allclose(y, y0, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("blk", _examples(), ids=lambda b: type(b).__name__)
+def test_dict_round_trip_and_units(blk):
+    d = blk.to_dict()
+    back = block_from_dict(d)
+    assert type(back) is type(blk) and back.params == blk.params and back.dt == blk.dt
+    assert set(blk.units) == set(blk.params)
+    assert type(blk).__name__ in BLOCK_TYPES
+    assert blk.kind in blk.describe()
+
+
+def test_structural_mode_equals_the_rigs_block():
+    x = np.concatenate([np.zeros(5), np.ones(300)]) + 0.3 * np.sin(0.3 * np.arange(305))
+    for f, z in ((37.62, 0.02), (120.0, 0.3), (5.0, 1.0), (20.0, 2.0)):
+        rig = make_block({"kind": "structural_mode", "frequency": f, "damping": z}, DT)
+        rig.reset(0.0)
+        mine = StructuralMode(DT, f_n=f, zeta=z, participation=1.0)
+        mine.reset(0.0)
+        np.testing.assert_allclose(mine.run(x), rig.run(x), rtol=0, atol=1e-9)
+
+
+def test_structural_mode_rings_at_its_frequency():
+    m = StructuralMode(DT, f_n=40.0, zeta=0.01, participation=1.0)
+    m.reset(0.0)
+    y = m.run(np.ones(4000)) - 1.0
+    zc = np.flatnonzero(np.diff(np.sign(y[100:])) != 0)
+    f = 1.0 / (2 * np.mean(np.diff(zc)) * DT)
+    assert f == pytest.approx(40.0 * math.sqrt(1 - 0.01**2), rel=5e-3)
+
+
+def test_creep_step_response_is_the_sum_of_lags():
+    c = Creep(DT, taus=[0.02, 0.2, 2.0], weights=[0.01, 0.02, 0.03], gain=1.05)
+    c.reset(0.0)
+    y = c.run(np.ones(5000))
+    t = (np.arange(5000) + 1) * DT
+    ref = 1.05 - sum(w * np.exp(-t / tau) for w, tau in zip([0.01, 0.02, 0.03], [0.02, 0.2, 2.0]))
+    np.testing.assert_allclose(y, ref, atol=1e-12)
+
+
+def test_fractional_delay_shifts_a_ramp():
+    d = FractionalDelay(DT, tau=2.5e-3)
+    d.reset(0.0)
+    y = d.run(np.arange(100.0))
+    np.testing.assert_allclose(y[10:], np.arange(100.0)[10:] - 2.5)
+
+
+def test_input_lag_delays_a_slow_ramp_by_tau():
+    lag = FirstOrderInputLag(DT, tau=3e-3)
+    lag.reset(0.0)
+    y = lag.run(np.arange(2000.0))
+    e = math.exp(-1.0 / 3.0)  # exact ZOH lag of a ramp: e / (1 - e) samples, about tau - dt / 2
+    assert np.arange(2000.0)[-1] - y[-1] == pytest.approx(e / (1 - e), rel=1e-9)
+
+
+def test_play_width_follows_the_rate_and_is_a_relay_dilation():
+    p = RateDependentPlay(DT, w_ref=1.0, exponent=1.0, v_ref=100.0, tau_v=1e-3)
+    p.reset(0.0)
+    up = np.linspace(0, 10, 101)  # 100 V/s
+    z = p.run(up)
+    assert up[-1] - z[-1] == pytest.approx(1.0, rel=0.02)  # lags by w_ref at v_ref
+    z2 = p.run(np.full(50, 10.0))  # at rest the width shrinks and the play catches up
+    assert z2[-1] == pytest.approx(10.0, abs=1e-6)
+
+
+def test_level_dependent_gain_inverse_and_slope():
+    b = LevelDependentGain(DT, c2=0.03, c3=-0.05, x_c=0.2, span=3.0)
+    x = np.linspace(-3, 3, 101)
+    np.testing.assert_allclose(b.inverse(b.run(x)), x, atol=1e-10)
+    h = 1e-6
+    np.testing.assert_allclose(b.slope(x), (b.run(x + h) - b.run(x - h)) / (2 * h), rtol=1e-6)
+
+
+def test_output_feedback_matches_the_rigs_moving_stage():
+    from preisach.blocks import BlockChain, preisach_stage
+
+    m = PreisachModel.builtin("ss15-1hz", levels=41)
+    u = 90 * np.sin(np.linspace(0, 12, 3000)) - 5
+    fb = OutputFeedback(DT, a=0.8, b=0.0, c=0.0, y_c=0.0, span=3.5)
+    y, ue, _ = fb.simulate(m.table, u, m.negative_saturation())
+    chain = BlockChain([preisach_stage(m, m.negative_saturation(), DT, 0.8)])
+    chain.reset(float(u[0]))
+    np.testing.assert_allclose(y, chain.run(u), atol=1e-12)
+    assert np.max(np.abs(ue - np.clip(u, -100, 100))) > 0.5  # the feedback moved the input
+
+
+def test_rate_dependent_width_scales_the_hysteretic_deviation():
+    w = RateDependentWidth(DT, c=0.1, exponent=1.0, rho_ref=100.0, tau_v=1e-3)
+    u = np.linspace(0, 10, 1001)  # 10 V/s: factor 0.1 -> 1 % of the deviation
+    x = np.full(u.size, 2.0)
+    anh = np.full(u.size, 1.0)
+    y = w.apply(x, u, anh)
+    assert y[-1] == pytest.approx(2.0 + 0.1 * 0.1 * 1.0, rel=1e-3)
+    with pytest.raises(TypeError, match="apply"):
+        w.run(x)
+
+
+def test_parameter_errors_name_block_and_parameter():
+    with pytest.raises(ValueError, match="structural_mode: parameter f_n"):
+        StructuralMode(DT, f_n=-1.0, zeta=0.1, participation=1.0)
+    with pytest.raises(ValueError, match="delay: parameter tau"):
+        FractionalDelay(DT, tau=-1e-3)
+    with pytest.raises(TypeError, match="unknown parameter"):
+        FractionalDelay(DT, tau=1e-3, bogus=1.0)
+    with pytest.raises(TypeError, match="missing parameter"):
+        GainOffset(DT, gain=1.0)
+    with pytest.raises(ValueError, match="creep: need one weight per time constant"):
+        Creep(DT, taus=[0.1, 1.0], weights=[0.1], gain=1.0)
+    with pytest.raises(ValueError, match="input sample 2 is not finite"):
+        GainOffset(DT, gain=1.0, offset=0.0).run([0.0, 1.0, math.nan])
+    with pytest.raises(ValueError, match="unknown type"):
+        block_from_dict({"type": "Nope", "dt": DT, "params": {}})
+
+
+def test_core_kernels_errors():
+    with pytest.raises(ValueError, match="width"):
+        core.play_operator(np.zeros(3), np.zeros(2), 0.0)
+    with pytest.raises(ValueError, match=r"width\[1\]"):
+        core.play_operator(np.zeros(3), np.array([0.0, -1.0, 0.0]), 0.0)
+    m = PreisachModel.builtin("ss15-1hz", levels=21)
+    with pytest.raises(ValueError, match="span"):
+        core.simulate_moving(m.table, np.zeros(3), m.negative_saturation(), 0.1, 0.0, 0.0, 0.0)
