@@ -19,7 +19,6 @@ import os
 import time
 
 import numpy as np
-
 from preisach.experiments import (
     ClosedLoopProtocol,
     ModelPlant,

@@ -34,7 +34,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         path = os.path.join(d, "rt.csv")
         res = daq.run_trial(rig, u, path, sample_time=ts, realtime=True, priority=args.priority,
-                            spin=args.spin, safety=daq.SafetyLimits(max_missed_deadlines=-1))
+                            spin=args.spin, safety=daq.SafetyLimits(max_consecutive_missed=-1))
         rec = Recording.load(path)
     late = rec.columns["lateness"][: res.samples] * 1e6
     interval = np.diff(late)
@@ -52,6 +52,11 @@ def main() -> None:
     print(f"  missed deadlines (I/O ended after the next deadline): {res.missed_deadlines} of "
           f"{res.samples} ({100 * res.missed_deadlines / max(res.samples, 1):.3f} %), "
           f"max lateness {res.max_lateness * 1e6:.0f} us")
+    idx = np.asarray(res.missed)  # the first 1024 missed samples
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) != 1) + 1) if idx.size else []
+    longest = max((r.size for r in runs), default=0)
+    print(f"  longest run of deadlines missed in a row: {longest} (default abort budget: "
+          f"{daq.SafetyLimits().max_consecutive_missed})")
     print(f"  recording: {len(rec)} rows, end_status {rec.metadata['end_status']!r}")
 
 

@@ -16,7 +16,6 @@ import os
 import time
 
 import numpy as np
-
 from preisach import PreisachModel
 from preisach.reference import RelayGrid
 from preisach.surface import TABLE_3_1
@@ -41,7 +40,9 @@ def best_of(fn, repeats: int) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--samples", type=int, default=10_000_000)
     ap.add_argument("--reference-samples", type=int, default=5_000)
     ap.add_argument("--levels", type=int, default=41)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -137,8 +138,23 @@ def test_cpp_unit_tests() -> None:
             pytest.fail(f"C++ unit test build failed:\n{cmd}\n\n{_tail(res.stdout)}", pytrace=False)
 
         # Run from the build dir (ctest --test-dir needs CMake >= 3.20).
+        listed = _run([ctest, "-N"], timeout=300, cwd=BUILD_DIR).stdout
         test = [ctest, "--output-on-failure", "--timeout", "300", "-j", jobs]
         res = _run(test, timeout=900, cwd=BUILD_DIR)
+
+    # Every doctest TEST_CASE must be exactly one CTest test: a name CTest cannot carry (a ';'
+    # splits it) would silently run zero assertions.
+    declared = sorted(
+        name
+        for src in (ROOT / "cpp" / "tests").glob("*.cpp")
+        for name in re.findall(r'^TEST_CASE\("((?:[^"\\]|\\.)*)"', src.read_text(), re.M)
+    )
+    discovered = sorted(re.findall(r"^\s*Test\s+#\d+: (.*?)\s*$", listed, re.M))
+    assert declared == discovered, (
+        "doctest cases vs CTest tests differ: "
+        f"only declared {sorted(set(declared) - set(discovered))}, "
+        f"only discovered {sorted(set(discovered) - set(declared))}"
+    )
 
     output = res.stdout
     assert res.returncode == 0, (

@@ -145,7 +145,7 @@ def test_pi_controller_regulates_the_rig(model, tmp_path):
 def test_realtime_pacing_reports_lateness(model, tmp_path):
     rig = daq.virtual_ss15(model)
     res = daq.run_trial(rig, np.zeros(200), tmp_path / "rt.csv", sample_time=TS, realtime=True,
-                        safety=daq.SafetyLimits(max_missed_deadlines=-1))
+                        safety=daq.SafetyLimits(max_consecutive_missed=-1))
     rec = Recording.load(tmp_path / "rt.csv")
     assert res.realtime and rec.metadata["realtime"] == 1
     assert res.elapsed >= 0.19  # paced: 200 samples take at least 199 periods
@@ -213,7 +213,7 @@ def test_comedi_protocol_replays_through_a_trial(tmp_path):
     assert dev.description == "comedi /dev/comedi0 (pci-multiq)"
     assert dev.conversions == ["hardcal", "hardcal"] and not dev.simulated
     res = daq.run_trial(dev, [10.0, 20.0], tmp_path / "c.csv", sample_time=TS,
-                        safety=daq.SafetyLimits(max_missed_deadlines=-1))
+                        safety=daq.SafetyLimits(max_consecutive_missed=-1))
     assert res.complete and res.realtime  # a real device is always paced
     calls = dev.verify_protocol()
     assert calls[-1] == f"data_write 1 1 0 0 {_dac_code(20.0)}"

@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 import pytest
-
 from preisach import PreisachModel, _core
 from preisach.experiments import (
     KINDS,

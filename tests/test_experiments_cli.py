@@ -7,7 +7,6 @@ import csv
 import json
 
 import pytest
-
 from preisach import PreisachModel
 from preisach.experiments.cli import add_parser
 

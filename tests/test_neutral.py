@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from preisach import PreisachModel
 from preisach.neutral import MpCheck, NeutralLocus, check_mp, neutral_locus, neutral_output
 

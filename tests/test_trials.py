@@ -199,7 +199,7 @@ def test_sigint_leaves_a_complete_contiguous_recording(tmp_path):
     # the machine is shared: no deadline budget, the test is about the interrupt
     p = write(tmp_path, HEAD + """
 [safety]
-max_missed_deadlines = -1
+max_consecutive_missed = -1
 [[steps]]
 kind = "hold"
 duration = 60.0

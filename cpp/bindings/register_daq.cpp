@@ -101,23 +101,25 @@ void register_daq(py::module_& m) {
 
     py::class_<pd::Safety>(m, "DaqSafety",
                            "Safety limits: output [u_min, u_max] (V at the actuator), slew_rate and ramp_rate (V/s), "
-                           "primary input [y_min, y_max], and the budget of missed deadlines (< 0: unlimited).")
+                           "primary input [y_min, y_max], and the budgets of missed deadlines: in total and in a row (< 0: unlimited).")
         .def(py::init([](double u_min, double u_max, double slew_rate, double ramp_rate, double y_min, double y_max,
-                         long long max_missed) {
-                 pd::Safety s{u_min, u_max, slew_rate, ramp_rate, y_min, y_max, max_missed};
+                         long long max_missed, long long max_in_a_row) {
+                 pd::Safety s{u_min, u_max, slew_rate, ramp_rate, y_min, y_max, max_missed, max_in_a_row};
                  s.validate();
                  return s;
              }),
              py::arg("u_min") = -135.0, py::arg("u_max") = 135.0, py::arg("slew_rate") = 1e4,
              py::arg("ramp_rate") = 500.0, py::arg("y_min") = -std::numeric_limits<double>::infinity(),
-             py::arg("y_max") = std::numeric_limits<double>::infinity(), py::arg("max_missed_deadlines") = 10)
+             py::arg("y_max") = std::numeric_limits<double>::infinity(), py::arg("max_missed_deadlines") = -1,
+             py::arg("max_consecutive_missed") = 20)
         .def_readonly("u_min", &pd::Safety::u_min)
         .def_readonly("u_max", &pd::Safety::u_max)
         .def_readonly("slew_rate", &pd::Safety::slew_rate)
         .def_readonly("ramp_rate", &pd::Safety::ramp_rate)
         .def_readonly("y_min", &pd::Safety::y_min)
         .def_readonly("y_max", &pd::Safety::y_max)
-        .def_readonly("max_missed_deadlines", &pd::Safety::max_missed_deadlines);
+        .def_readonly("max_missed_deadlines", &pd::Safety::max_missed_deadlines)
+        .def_readonly("max_consecutive_missed", &pd::Safety::max_consecutive_missed);
 
     py::class_<pd::Device>(m, "DaqDevice", "A DAQ device (connector volts; the channels carry the calibrations).")
         .def_property_readonly("description", &pd::Device::description)

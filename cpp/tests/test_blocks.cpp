@@ -151,7 +151,7 @@ TEST_CASE("offset drift: linear rate exactly, random walk seeded and reproducibl
     CHECK(std::sqrt(s2 / double(n)) == doctest::Approx(0.01).epsilon(0.5));
 }
 
-TEST_CASE("preisach stage: equals the simulator without feedback; moving gain breaks congruency") {
+TEST_CASE("preisach stage: equals the simulator without feedback, moving gain breaks congruency") {
     const auto t = ptable();
     const State s0 = State::negative_saturation(-1, 2);
     PreisachStage st(1e-3, t, s0, 0.0);

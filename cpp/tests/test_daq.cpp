@@ -2,6 +2,7 @@
 // the trial runner on the virtual rig (safety limits, aborts, stop requests, exceptions),
 // the PI controller, and the Comedi device against a replayed comedilib protocol.
 #include <atomic>
+#include <chrono>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -170,7 +171,47 @@ TEST_CASE("runner on the virtual rig: every sample recorded, calibration applied
     std::remove(opt.path.c_str());
 }
 
-TEST_CASE("runner safety: clamp and slew limit; NaN command aborts and ramps to 0 V") {
+TEST_CASE("real-time budget: a stall of many periods aborts, a lone late sample does not") {
+    // A controller that blocks for 40 ms at sample 30 stalls the 1 kHz loop: every deadline
+    // passed during the stall is missed in a row, exceeding the default budget of 20.
+    auto rig = make_rig();
+    const auto stall = [](std::size_t at, int ms) {
+        return FunctionController(
+            [at, ms](const SampleInfo& s) {
+                if (s.k == at) std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+                return 0.0;
+            },
+            200);
+    };
+    TrialOptions opt;
+    opt.path = tmpfile("stall");
+    opt.fsync = false;
+    opt.realtime = true;
+    TrialRunner runner;
+    auto ctl = stall(30, 40);
+    const auto res = runner.run(rig, ctl, opt, Safety{});
+    CHECK(res.end_status.rfind("aborted: 21 deadlines missed in a row exceed the budget of 20", 0) == 0);
+    CHECK(res.missed_deadlines >= 21);
+    CHECK(res.samples < 200);
+    std::remove(opt.path.c_str());
+
+    // The same stall with the in-a-row budget off and a total budget of 100 completes; every
+    // miss is still counted.
+    Safety lenient;
+    lenient.max_consecutive_missed = -1;
+    lenient.max_missed_deadlines = 100;
+    auto ctl2 = stall(30, 40);
+    const auto res2 = runner.run(rig, ctl2, opt, lenient);
+    CHECK(res2.end_status == "complete");
+    CHECK(res2.missed_deadlines >= 30);
+    std::remove(opt.path.c_str());
+
+    Safety zero;
+    zero.max_consecutive_missed = 0;
+    CHECK_THROWS_AS(zero.validate(), std::invalid_argument);
+}
+
+TEST_CASE("runner safety: clamp and slew limit, NaN command aborts and ramps to 0 V") {
     auto rig = make_rig();
     // 300 V, far above the +/-135 V limit, as a step; NaN at sample 150
     FunctionController ctl([](const SampleInfo& s) { return s.k == 150 ? std::nan("") : 300.0; }, 200);

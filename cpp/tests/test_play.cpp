@@ -87,7 +87,7 @@ TEST_CASE("play operator: errors name the sample") {
     CHECK_THROWS_AS(play(x2, w, std::numeric_limits<double>::infinity()), std::invalid_argument);
 }
 
-TEST_CASE("moving model: zero feedback is the classical model; feedback equals a hand-written loop") {
+TEST_CASE("moving model: zero feedback is the classical model, feedback equals a hand-written loop") {
     const auto lv = ptest::uniform_levels(15);
     const auto table = ptest::analytic_table(lv);
     std::mt19937 g(5);
@@ -107,10 +107,8 @@ TEST_CASE("moving model: zero feedback is the classical model; feedback equals a
     double prev = ref.output();
     double worst = 0.0;
     for (std::size_t k = 0; k < u.size(); ++k) {
-        const double d = prev - yc;
-        const double e =
-            std::min(std::max(u[k] + a * d + b * d * d / span + c * d * d * d / (span * span), ptest::U_MIN),
-                     ptest::U_MAX);
+        const double d = prev - yc, q = d / span;  // a d + b d^2/span + c d^3/span^2, Horner form
+        const double e = std::min(std::max(u[k] + d * (a + q * (b + c * q)), ptest::U_MIN), ptest::U_MAX);
         prev = ref.step(e);
         worst = std::max(worst, std::abs(prev - y[k]) + std::abs(e - ue[k]));
     }

@@ -9,7 +9,7 @@ beta``), ``r = (alpha - beta) / 2`` and ``s = (alpha + beta) / 2``.
 from __future__ import annotations
 
 try:
-    from . import _core
+    from . import _core  # noqa: F401  (fail early, with a clear message, without the extension)
 except ImportError as exc:  # pragma: no cover - only without a built extension
     raise ImportError(
         "preisach._core (the compiled C++ core) is missing. Install the package with "
@@ -17,6 +17,7 @@ except ImportError as exc:  # pragma: no cover - only without a built extension
         "PYTHONPATH has no compiled core."
     ) from exc
 
+from .diagnose import AugmentedModel, DiagnosisReport, diagnose, load_model  # noqa: E402,I001
 from .errors import PreisachError, PreisachWarning, RecordingFormatError
 from .model import (
     BUILTIN_MODELS,
@@ -29,7 +30,6 @@ from .model import (
 )
 from .recording import Recording, RecordingWriter
 from .surface import TABLE_3_1, SqrtSurface
-from .diagnose import AugmentedModel, DiagnosisReport, diagnose, load_model  # noqa: E402,I001
 
 __version__ = "0.1.0"
 

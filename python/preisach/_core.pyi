@@ -430,7 +430,8 @@ class DaqSafety:
         ramp_rate: float = 500.0,
         y_min: float = ...,
         y_max: float = ...,
-        max_missed_deadlines: int = 10,
+        max_missed_deadlines: int = -1,
+        max_consecutive_missed: int = 20,
     ) -> None: ...
     @property
     def u_min(self) -> float: ...
@@ -446,6 +447,8 @@ class DaqSafety:
     def y_max(self) -> float: ...
     @property
     def max_missed_deadlines(self) -> int: ...
+    @property
+    def max_consecutive_missed(self) -> int: ...
 
 class DaqDevice:
     @property

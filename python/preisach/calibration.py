@@ -48,8 +48,9 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
-from typing import Any, Mapping, Union
+from typing import Any, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -102,6 +103,7 @@ class LinearCalibration:
     -14.14
     >>> round(cal.inverse(-14.14), 6)
     1.0
+
     """
 
     gain: float
@@ -147,6 +149,7 @@ class LinearCalibration:
         -------
         float or numpy.ndarray
             Physical voltage(s) (V); a ``float`` for scalar input.
+
         """
         y = self.gain * np.asarray(x, dtype=np.float64) + self.offset
         return float(y) if y.ndim == 0 else y
@@ -163,6 +166,7 @@ class LinearCalibration:
         -------
         float or numpy.ndarray
             Connector voltage(s) (V); a ``float`` for scalar input.
+
         """
         x = (np.asarray(y, dtype=np.float64) - self.offset) / self.gain
         return float(x) if x.ndim == 0 else x
@@ -181,6 +185,7 @@ class LinearCalibration:
         ------
         ValueError
             If a required key is missing or an unknown key is present.
+
         """
         names = {f.name for f in fields(cls)}
         unknown = set(data) - names
@@ -222,6 +227,7 @@ def fit_linear_calibration(x: ArrayLike, y: ArrayLike) -> LinearCalibration:
     >>> cal = fit_linear_calibration([0, 1, 2], [1.0, 3.0, 5.0])
     >>> cal.gain, cal.offset
     (2.0, 1.0)
+
     """
     xa = np.asarray(x, dtype=np.float64)
     ya = np.asarray(y, dtype=np.float64)
@@ -280,6 +286,7 @@ class AmplifierTable:
         ``V_aout``, amplifier channel A output (V), driven by CH 0.
     v_b_out : numpy.ndarray
         ``V_bout``, amplifier channel B output (V), driven by CH 1.
+
     """
 
     v_in: NDArray[np.float64]
@@ -298,6 +305,7 @@ class AdcTable:
     ch0, ch1, ch2, ch3 : numpy.ndarray
         Voltage read on ADC channels 0-3 (V).  For an ADC calibration the reading is the
         connector voltage ``x`` and the supply is the physical voltage ``y``.
+
     """
 
     supply: NDArray[np.float64]

@@ -21,8 +21,10 @@ next deadline is a *missed deadline*; every one is counted (``TrialResult.missed
 the first 1024 indices in ``TrialResult.missed``) and the per-sample lateness is a column of
 the recording.  A simulated device otherwise runs as fast as it can.
 
-A NaN or out-of-range reading, a controller error, a non-finite command, more missed deadlines
-than ``SafetyLimits.max_missed_deadlines``, or a stop request ends the trial early: the output
+A NaN or out-of-range reading, a controller error, a non-finite command, more deadlines missed
+in a row than ``SafetyLimits.max_consecutive_missed`` (default 20: a stall of 20 ms at 1 kHz) or
+in total than ``SafetyLimits.max_missed_deadlines`` (default: no limit; a lone late sample only
+holds the previous output one period longer), or a stop request ends the trial early: the output
 is ramped to 0 V at ``ramp_rate`` (still sampling and recording), and the file is closed with
 ``end_status`` ``"interrupted"`` (stop request, Ctrl-C) or ``"aborted: <reason>"``.  In every
 case the file holds every sample taken and loads with :meth:`preisach.Recording.load`.

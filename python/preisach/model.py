@@ -1,9 +1,9 @@
-"""The classical Preisach model: construction, states, simulation, read-out, save/load.
+r"""The classical Preisach model: construction, states, simulation, read-out, save/load.
 
 Conventions used throughout :mod:`preisach`:
 
 * volts in, volts out, seconds;
-* a relay :math:`\\gamma_{\\alpha\\beta}` switches to +1 when ``u >= alpha`` and to -1 when
+* a relay :math:`\gamma_{\alpha\beta}` switches to +1 when ``u >= alpha`` and to -1 when
   ``u <= beta``, with ``alpha >= beta``; in the thesis's other coordinates
   ``r = (alpha - beta) / 2`` (half-width) and ``s = (alpha + beta) / 2`` (offset);
 * the Everett function ``E(alpha, beta)`` is the weight inside the triangle
@@ -75,7 +75,8 @@ def state_from_dict(data: dict[str, Any]) -> State:
         if bad:
             raise ValueError(f"state: unknown piece kind {bad[0]!r}")
         return State(float(data["u_min"]), float(data["u_max"]), float(data["input"]),
-                     np.array([p[0] for p in pieces], float), np.array([p[1] for p in pieces], float),
+                     np.array([p[0] for p in pieces], float),
+                     np.array([p[1] for p in pieces], float),
                      np.array([k == "antidiagonal" for k in kinds], bool))
     except (KeyError, IndexError, TypeError) as exc:
         raise ValueError(f"state: malformed description ({exc!r})") from exc
@@ -90,6 +91,7 @@ class Slopes(NamedTuple):
         Slope if the input increases next (Eq A.13).
     falling : float
         Slope if the input decreases next (Eq A.27).
+
     """
 
     rising: float
@@ -121,6 +123,7 @@ class SimulationResult:
         Boundary before the first and after the last sample.
     sample_time : float
         Sampling period (s) used when no time array was given.
+
     """
 
     input: NDArray[np.float64]
@@ -189,6 +192,7 @@ class PreisachModel:
     out_of_range : {"clamp", "raise"}
         What :meth:`simulate` does with inputs outside ``[u_min, u_max]``: clamp them to the
         range (default) or raise :class:`ValueError` naming the first offending sample.
+
     """
 
     def __init__(
@@ -200,7 +204,9 @@ class PreisachModel:
         out_of_range: str = "clamp",
     ) -> None:
         if not isinstance(table, _core.EverettTable):
-            raise TypeError(f"table: expected preisach._core.EverettTable, got {type(table).__name__}")
+            raise TypeError(
+                f"table: expected preisach._core.EverettTable, got {type(table).__name__}"
+            )
         if out_of_range not in _POLICIES:
             raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {out_of_range!r}")
         self._table = table
@@ -229,6 +235,7 @@ class PreisachModel:
         PreisachModel
             ``E[i, j] = (y_grid[i, i] - y_grid[i, j]) / 2``; ``y_min`` is the mean of the FOD
             end points ``y_grid[:, 0]``.
+
         """
         lv = _as_levels(levels, 0.0, 1.0)
         y = np.asarray(y_grid, dtype=float)
@@ -261,6 +268,7 @@ class PreisachModel:
             ``(u_min, u_max)`` (V) when ``levels`` is a count.
         **kwargs
             Passed to the constructor.
+
         """
         if np.ndim(levels) == 0 and u_range is None:
             raise ValueError("u_range: needed when levels is a number of levels")
@@ -303,6 +311,7 @@ class PreisachModel:
             model ``y = sum(w * gamma)``.
         **kwargs
             Passed to the constructor.
+
         """
         lv = _as_levels(levels, 0.0, 1.0)
         w = np.asarray(weights, dtype=float)
@@ -325,7 +334,7 @@ class PreisachModel:
 
     @classmethod
     def builtin(cls, name: str = "ss15-1hz", levels: ArrayLike | int = 201) -> PreisachModel:
-        """The SS15 piezo bimorph models of the thesis, rebuilt from Table 3.1 via Eq 3.2.
+        """Return an SS15 piezo bimorph model of the thesis, rebuilt from Table 3.1 via Eq 3.2.
 
         Parameters
         ----------
@@ -339,10 +348,13 @@ class PreisachModel:
         PreisachModel
             Input ``V_in`` (V, amplifier output) on [-100, 100]; output the strain-gauge
             voltage (V).
+
         """
         key = name.lower()
         if key not in BUILTIN_MODELS:
-            raise ValueError(f"name: unknown built-in model {name!r}; choose from {sorted(BUILTIN_MODELS)}")
+            raise ValueError(
+                f"name: unknown built-in model {name!r}; choose from {sorted(BUILTIN_MODELS)}"
+            )
         surf = TABLE_3_1[BUILTIN_MODELS[key]]
         model = cls.from_surface(surf, levels, name=key)
         model.metadata["builtin"] = key
@@ -421,6 +433,7 @@ class PreisachModel:
         l : float
             Offset of the horizontal boundary segment (V), in ``[u_min, u_max]``; the input
             of the state is ``l``.
+
         """
         return State.neutral(self.u_min, self.u_max, float(l))
 
@@ -443,6 +456,7 @@ class PreisachModel:
             are not dominant are wiped out as the model would.
         start : {"negative", "positive"}
             Saturation the input starts from.
+
         """
         if start not in ("negative", "positive"):
             raise ValueError(f"start: expected 'negative' or 'positive', got {start!r}")
@@ -459,7 +473,7 @@ class PreisachModel:
 
     # ------------------------------------------------------------------ simulation
     def simulator(self, state: State | None = None) -> _core.Simulator:
-        """A step-by-step simulator (``step(u)``, ``run(u)``, ``state``, ``slopes()``)."""
+        """Return a step-by-step simulator (``step(u)``, ``run(u)``, ``state``, ``slopes()``)."""
         return _core.Simulator(self._table, self.anhysteretic_state() if state is None else state)
 
     def _policy(self, out_of_range: str | None) -> str:
@@ -496,6 +510,7 @@ class PreisachModel:
         Returns
         -------
         SimulationResult
+
         """
         pol = self._policy(out_of_range)
         uu = np.ascontiguousarray(u, dtype=float)
@@ -538,6 +553,7 @@ class PreisachModel:
         y : ndarray, shape (runs, n)
             Outputs (V).
         final_states : list of State
+
         """
         uu = np.ascontiguousarray(u, dtype=float)
         if uu.ndim != 2:
@@ -577,6 +593,7 @@ class PreisachModel:
         ValueError
             If the file is not a preisach model or its format version is newer than this
             package understands.
+
         """
         try:
             data = np.load(path, allow_pickle=False)

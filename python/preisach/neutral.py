@@ -81,6 +81,7 @@ class MpCheck:
     negative_cells : list of (float, float, float)
         Up to 10 most negative cells as ``(alpha, beta, mass)``: the cell's corner farthest
         from the diagonal (upper ``alpha``, lower ``beta``, V) and its mass (V).
+
     """
 
     in_mp: bool
@@ -137,6 +138,7 @@ def check_mp(model: PreisachModel, tolerance: float = 0.0) -> MpCheck:
     Returns
     -------
     MpCheck
+
     """
     if not (math.isfinite(tolerance) and tolerance >= 0.0):
         raise ValueError(f"tolerance: must be finite and >= 0 (V), got {tolerance!r}")
@@ -171,6 +173,7 @@ def neutral_output(model: PreisachModel, l: ArrayLike) -> NDArray[np.float64]:  
     ------
     ValueError
         If an ``l`` is outside ``[u_min, u_max]`` or not finite (the message names its index).
+
     """
     arr = np.ascontiguousarray(np.atleast_1d(np.asarray(l, dtype=float)).ravel())
     out = _core.neutral_locus(model.table, arr)
@@ -203,6 +206,7 @@ class NeutralLocus:
     table : preisach._core.EverettTable or None
         The model's table when ``source == "model"``: roots are then refined on the exact
         ``N`` instead of interpolated.
+
     """
 
     l: NDArray[np.float64]  # noqa: E741 (the thesis's symbol)
@@ -258,6 +262,7 @@ class NeutralLocus:
         ------
         ValueError
             If ``y`` is not finite or outside ``y_range``.
+
         """
         y = float(y)
         lo, hi = self.y_range
@@ -306,6 +311,7 @@ class NeutralLocus:
         ValueError
             If ``y`` is outside the locus's range, or ``method="inverse"`` on a non-monotone
             locus.
+
         """
         if method not in _METHODS:
             raise ValueError(f"method: expected one of {_METHODS}, got {method!r}")
@@ -359,6 +365,7 @@ class NeutralLocus:
         Returns
         -------
         matplotlib.figure.Figure
+
         """
         from matplotlib.figure import Figure
 
@@ -408,6 +415,7 @@ def neutral_locus(
     -------
     NeutralLocus
         With ``source="model"``: :meth:`NeutralLocus.inverse` refines roots on the exact ``N``.
+
     """
     if l is None:
         n = 2 * len(model.levels) - 1 if points is None else int(points)

@@ -1,7 +1,7 @@
-"""Band-limited uniform input noise for open-loop drift tests (thesis §4.1-4.2).
+r"""Band-limited uniform input noise for open-loop drift tests (thesis §4.1-4.2).
 
-The thesis injects a zero-mean, uniformly distributed random input noise :math:`\\eta(t)` on top
-of the regulated input, :math:`u(t) = \\bar u_d + \\eta(t)` (Problem 1, chapter 4).  It was
+The thesis injects a zero-mean, uniformly distributed random input noise :math:`\eta(t)` on top
+of the regulated input, :math:`u(t) = \bar u_d + \eta(t)` (Problem 1, chapter 4).  It was
 produced with Simulink's *Uniform Random Number* block, whose sample time had to be set to
 0.015 s, followed by a low-pass filter with a 15 Hz cut-off chosen well below the 37.62 Hz
 natural frequency of the bimorph; the amplitude was 0.5 V.  The thesis does not state the
@@ -22,7 +22,7 @@ Generation pipeline (all at the simulation sample time ``sample_time``, default 
        transient (the output rises from 0 during roughly the first ``1 / cutoff`` seconds) and
        unit DC gain, so the output stays zero-mean.
     3. Scale the filtered sequence so that its largest absolute value equals ``amplitude``
-       (V), i.e. :math:`\\|\\eta\\|_\\infty = \\xi` exactly as in Problem 1 of chapter 4.
+       (V), i.e. :math:`\|\eta\|_\infty = \xi` exactly as in Problem 1 of chapter 4.
 
 Amplitude convention.  The alternative reading of "amplitude 0.5 V" is the bound of the raw
 uniform draws (the block's ``Minimum``/``Maximum`` = -0.5/0.5).  With that convention the
@@ -45,8 +45,9 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
-from typing import Any, Mapping, Union
+from typing import Any, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -182,6 +183,7 @@ def uniform_filtered_noise(
     >>> eta = uniform_filtered_noise(10.0, 0.5, seed=1)
     >>> eta.shape, float(abs(eta).max())
     ((10000,), 0.5)
+
     """
     amplitude, sample_time, hold_time, cutoff, order = _validate(
         amplitude, sample_time, hold_time, cutoff, order
@@ -231,6 +233,7 @@ class NoiseSpec:
     >>> x = spec.generate(2.0, seed=3)
     >>> len(x)
     2000
+
     """
 
     amplitude: float = 0.5
@@ -263,6 +266,7 @@ class NoiseSpec:
         -------
         numpy.ndarray
             1-D float64 array of ``round(duration / sample_time)`` samples (V).
+
         """
         return uniform_filtered_noise(
             duration,
@@ -286,6 +290,7 @@ class NoiseSpec:
         ------
         ValueError
             If ``data`` has keys that are not fields of :class:`NoiseSpec`.
+
         """
         unknown = set(data) - {"amplitude", "sample_time", "hold_time", "cutoff", "order"}
         if unknown:

@@ -250,6 +250,7 @@ class Recording:
     >>> rec.save("run.csv")  # doctest: +SKIP
     >>> Recording.load("run.csv").t  # doctest: +SKIP
     array([0.   , 0.001, 0.002])
+
     """
 
     t: NDArray[np.float64]
@@ -345,6 +346,7 @@ class Recording:
         ValueError
             If ``t`` and ``sample_time`` are both missing, ``sample_time`` is not a positive
             finite number, or the data are invalid (see :class:`Recording`).
+
         """
         if u is None or y is None:
             raise TypeError("from_arrays() requires both u (input, V) and y (output, V)")
@@ -401,6 +403,7 @@ class Recording:
         preisach.errors.PreisachWarning
             If the last line of a CSV file has no trailing newline (the writer was killed in
             the middle of a write): that line, and only that line, is dropped.
+
         """
         p = Path(path)
         suffix = p.suffix.lower()
@@ -428,6 +431,7 @@ class Recording:
         ------
         ValueError
             If the suffix is neither ``.csv`` nor ``.npz``.
+
         """
         p = Path(path)
         suffix = p.suffix.lower()
@@ -469,6 +473,7 @@ class Recording:
         ValueError
             If there is no ``sample_time`` metadata and fewer than two samples, or the
             metadata entry is not a number.
+
         """
         st = self.metadata.get("sample_time")
         if st is not None:
@@ -510,6 +515,7 @@ class Recording:
         ------
         ValueError
             If ``t0`` or ``t1`` is NaN, or ``t1 < t0``.
+
         """
         if (t0 is not None and np.isnan(t0)) or (t1 is not None and np.isnan(t1)):
             raise ValueError("slice bounds must not be NaN")
@@ -534,6 +540,7 @@ class Recording:
         Returns
         -------
         dict of str to numpy.ndarray
+
         """
         return dict(self._items())
 
@@ -861,6 +868,7 @@ class RecordingWriter:
     >>> with RecordingWriter("trial.csv", metadata={"sample_time": 1e-3}) as w:  # doctest: +SKIP
     ...     for chunk in acquire():
     ...         w.append({"t": chunk.t, "u": chunk.u, "y": chunk.y})
+
     """
 
     def __init__(
@@ -979,6 +987,7 @@ class RecordingWriter:
             If the writer is closed, the chunk has the wrong shape or keys, a value is
             NaN/inf, or ``t`` is not strictly increasing (within the chunk or relative to
             the last row written).  Nothing from a rejected chunk is written.
+
         """
         if self.closed:
             raise ValueError(f"{self._path}: cannot append, the writer is closed")
@@ -1024,6 +1033,7 @@ class RecordingWriter:
             Further metadata to append as trailing ``# key: value`` lines (e.g. results
             known only at the end); it overrides leading metadata with the same key when
             the file is loaded.  ``end_status`` is reserved.
+
         """
         if self.closed:
             return

@@ -1,6 +1,6 @@
-"""A plain NumPy relay-grid Preisach model, for validation and benchmarks only.
+r"""A plain NumPy relay-grid Preisach model, for validation and benchmarks only.
 
-Every relay :math:`\\gamma_{\\alpha\\beta}` is stored explicitly and updated at every sample, so
+Every relay :math:`\gamma_{\alpha\beta}` is stored explicitly and updated at every sample, so
 the cost per sample grows with the number of relays.  The fast simulator in
 :class:`preisach.PreisachModel` must agree with it; it is never used for real work.
 
@@ -30,6 +30,7 @@ class RelayGrid:
     y_min : float
         Output at negative saturation (V); the output is
         ``y_min + sum(weights) + sum(weights * state)``.
+
     """
 
     def __init__(self, alpha: ArrayLike, beta: ArrayLike, weights: ArrayLike, y_min: float):
@@ -73,7 +74,7 @@ class RelayGrid:
         self.state[:] = -1.0
 
     def output(self) -> float:
-        """Current output (V)."""
+        """Return the current output (V)."""
         return self.offset + float(self.weights @ self.state)
 
     def run(self, u: ArrayLike) -> NDArray[np.float64]:

@@ -1,4 +1,4 @@
-"""The constrained square-root FOD surface of the thesis (Eq 3.1-3.2, Table 3.1).
+r"""The constrained square-root FOD surface of the thesis (Eq 3.1-3.2, Table 3.1).
 
 The surface gives the output ``y(alpha, beta)`` (volts) at the end of a first-order
 descending (FOD) curve: the input goes to negative saturation ``u_min``, rises to
@@ -6,13 +6,13 @@ descending (FOD) curve: the input goes to negative saturation ``u_min``, rises t
 
 .. math::
 
-    \\tilde y(\\alpha,\\beta) = \\frac{(y_{max}-y_{min})\\,\\bar f_2(\\alpha)
-        \\left(\\sqrt{\\beta-f_3(\\alpha)}-\\sqrt{u_{min}-f_3(\\alpha)}\\right)}
-        {\\bar f_2(\\hat u)\\left(\\sqrt{\\hat u-f_3(\\hat u)}-\\sqrt{u_{min}-f_3(\\hat u)}\\right)}
+    \tilde y(\alpha,\beta) = \frac{(y_{max}-y_{min})\,\bar f_2(\alpha)
+        \left(\sqrt{\beta-f_3(\alpha)}-\sqrt{u_{min}-f_3(\alpha)}\right)}
+        {\bar f_2(\hat u)\left(\sqrt{\hat u-f_3(\hat u)}-\sqrt{u_{min}-f_3(\hat u)}\right)}
         + y_{min}
 
-with :math:`\\bar f_2(\\alpha) = \\bar x_4\\alpha^2 + \\bar x_5\\alpha + 1` and
-:math:`f_3(\\alpha) = x_7\\alpha^2 + x_8\\alpha + x_9`.  By construction
+with :math:`\bar f_2(\alpha) = \bar x_4\alpha^2 + \bar x_5\alpha + 1` and
+:math:`f_3(\alpha) = x_7\alpha^2 + x_8\alpha + x_9`.  By construction
 ``y(u_max, u_max) = y_max`` and ``y(alpha, u_min) = y_min`` for every ``alpha``.
 """
 
@@ -29,24 +29,25 @@ __all__ = ["SqrtSurface", "TABLE_3_1"]
 
 @dataclass(frozen=True)
 class SqrtSurface:
-    """Parameters of the constrained square-root FOD surface (one column of Table 3.1).
+    r"""Parameters of the constrained square-root FOD surface (one column of Table 3.1).
 
     Attributes
     ----------
     xbar4, xbar5 : float
-        Normalised coefficients of :math:`\\bar f_2` (1/V^2 and 1/V).
+        Normalised coefficients of :math:`\bar f_2` (1/V^2 and 1/V).
     x7, x8, x9 : float
         Coefficients of :math:`f_3` (1/V, 1, V).  ``f_3(alpha) < u_min`` must hold on
         the input range so that the square roots are real.
     y_max, y_min : float
         Output (V) at positive saturation and at the end of every FOD curve.
     u_max, u_min : float
-        Input range (V).  ``u_max`` plays the role of :math:`\\hat u`.
+        Input range (V).  ``u_max`` plays the role of :math:`\hat u`.
     fit_error : float
         Root of the summed squared fit error over the FOD data (V), as Table 3.1 reports;
         ``nan`` when unknown.
     frequency : float
         Frequency (Hz) of the identification input, ``nan`` when unknown.
+
     """
 
     xbar4: float

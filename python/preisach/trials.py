@@ -50,7 +50,8 @@ File layout
     ramp_rate = 500.0            # V/s, ramp to 0 V on abort and at the end
     approach_rate = 200.0        # V/s, ramp from the current output to a step's first value
     y_limits = [-4.9, 4.9]       # V, primary input; outside aborts
-    max_missed_deadlines = 10
+    max_missed_deadlines = -1    # abort beyond this many missed deadlines in total (< 0: never)
+    max_consecutive_missed = 20  # ... or beyond this many in a row (a stall)
 
     [[steps]]                    # one table per step, run in order
     kind = "initialise"
@@ -170,7 +171,8 @@ _CHANNEL_KEYS: dict[str, tuple[Any, Any]] = {
 _SAFETY_KEYS: dict[str, tuple[Any, Any]] = {
     "u_limits": (list, [-AMPLIFIER_LIMIT, AMPLIFIER_LIMIT]), "slew_rate": (_NUM, 1e4),
     "ramp_rate": (_NUM, 500.0), "approach_rate": (_NUM, 200.0),
-    "y_limits": (list, [-math.inf, math.inf]), "max_missed_deadlines": (int, 10),
+    "y_limits": (list, [-math.inf, math.inf]), "max_missed_deadlines": (int, -1),
+    "max_consecutive_missed": (int, 20),
 }
 _STEP_COMMON: dict[str, tuple[Any, Any]] = {"kind": (str, REQUIRED), "name": (str, None)}
 _SHAPE = (str, "cosine")
@@ -370,7 +372,7 @@ class TrialPlan:
         s = self.safety
         return daq.SafetyLimits(s["u_limits"][0], s["u_limits"][1], s["slew_rate"],
                                 s["ramp_rate"], s["y_limits"][0], s["y_limits"][1],
-                                int(s["max_missed_deadlines"]))
+                                int(s["max_missed_deadlines"]), int(s["max_consecutive_missed"]))
 
 
 def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | None:

@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Optional
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -83,7 +83,7 @@ def _arrays(rec: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray
     return t, u, y
 
 
-def _range(y: NDArray[np.float64], output_range: Optional[float]) -> float:
+def _range(y: NDArray[np.float64], output_range: float | None) -> float:
     if output_range is not None:
         r = float(output_range)
         if not (math.isfinite(r) and r > 0):
@@ -124,6 +124,7 @@ class Prediction:
         Index (into ``t``) of the first scored sample; earlier ones are the burn-in.
     exact_state : bool
         Whether the model's state is exact from ``first`` on (see the module docstring).
+
     """
 
     t: NDArray[np.float64]
@@ -163,6 +164,7 @@ def predict(
     Returns
     -------
     Prediction
+
     """
     t, u, y = _arrays(recording)
     pol = check_policy(initial_state)
@@ -202,6 +204,7 @@ class VerificationRow:
         Range (V) the percentages refer to.
     exact_state : bool
         Whether the model's state was exact on the scored samples.
+
     """
 
     experiment: str
@@ -249,6 +252,7 @@ class VerificationTable:
     model_name : str
     predictions : list of Prediction
         The simulations behind the rows (for :meth:`plot`).
+
     """
 
     rows: list[VerificationRow]
@@ -296,8 +300,8 @@ def verify(
     *,
     initial_state: InitialState = "burn-in",
     delay: int = 0,
-    output_range: Optional[float] = None,
-    names: Optional[Sequence[str]] = None,
+    output_range: float | None = None,
+    names: Sequence[str] | None = None,
 ) -> VerificationTable:
     """Simulate every recording's input through ``model`` and tabulate the errors.
 
@@ -320,6 +324,7 @@ def verify(
     -------
     VerificationTable
         Max and RMS error in volts and in percent of the output range, per experiment.
+
     """
     recs = [recordings] if hasattr(recordings, "u") else list(recordings)
     if not recs:
@@ -407,7 +412,7 @@ def _turning_points(
 
 def _cross(
     u: NDArray[np.float64], y: NDArray[np.float64], i0: int, i1: int, level: float, rising: bool
-) -> Optional[float]:
+) -> float | None:
     """Read the output where the monotone envelope of ``u[i0..i1]`` first reaches ``level``."""
     seg = u[i0 : i1 + 1]
     env = np.maximum.accumulate(seg) if rising else np.minimum.accumulate(seg)
@@ -466,6 +471,7 @@ class Comparison:
         Times (s) of the reversal and of the return.
     y_first, y_return : float
         Outputs (V) at ``level`` on the earlier and the later branch.
+
     """
 
     kind: str
@@ -492,6 +498,7 @@ class WipingOutResult:
         Range (V) of the percentages.
     tolerance : float
         Pass/fail threshold (% of ``output_range``).
+
     """
 
     comparisons: list[Comparison]
@@ -547,9 +554,9 @@ def wiping_out_metric(
     recording: Any,
     *,
     tolerance: float = 5.0,
-    reversal_tol: Optional[float] = None,
+    reversal_tol: float | None = None,
     branches: str = "both",
-    output_range: Optional[float] = None,
+    output_range: float | None = None,
 ) -> WipingOutResult:
     """Wiping-out (return-point memory) test of a recording (thesis §3.2.1, Figs 3.10-3.12).
 
@@ -581,6 +588,7 @@ def wiping_out_metric(
     WipingOutResult
         For the thesis's input (Fig 3.6) the ascending comparisons are the 4th ascending branch
         against the 1st, 2nd and 3rd at their peaks (Figs 3.10-3.12).
+
     """
     t, u, y = _arrays(recording)
     tol_pct = _check_tolerance(tolerance)
@@ -647,6 +655,7 @@ class LoopPair:
         Mean vertical offset (V) of loop B over loop A (least-squares shift).
     shape_difference : float
         ``max |(y_B - y_A) - shift|`` over both branches (V).
+
     """
 
     low: float
@@ -670,6 +679,7 @@ class CongruencyResult:
         Range (V) of the percentages.
     tolerance : float
         Pass/fail threshold (% of ``output_range``).
+
     """
 
     pairs: list[LoopPair]
@@ -736,10 +746,10 @@ def congruency_metric(
     recording: Any,
     *,
     tolerance: float = 5.0,
-    reversal_tol: Optional[float] = None,
-    match_tol: Optional[float] = None,
+    reversal_tol: float | None = None,
+    match_tol: float | None = None,
     points: int = 101,
-    output_range: Optional[float] = None,
+    output_range: float | None = None,
 ) -> CongruencyResult:
     """Congruent-minor-loop test of a recording (thesis §3.2.2, Figs 3.13-3.16).
 
@@ -770,6 +780,7 @@ def congruency_metric(
     Returns
     -------
     CongruencyResult
+
     """
     t, u, y = _arrays(recording)
     tol_pct = _check_tolerance(tolerance)

@@ -81,6 +81,7 @@ class InputSignal:
     marks : dict of str to ndarray of int
         Named sample indices, e.g. ``"alpha"`` (the turning points of the FOD curves) or
         ``"segment_a"``/``"segment_b"`` (first and last sample of a test segment).
+
     """
 
     t: NDArray[np.float64]
@@ -159,6 +160,7 @@ def legs(
     -------
     InputSignal
         ``turns`` holds the sample index of every leg end.
+
     """
     ts = _positive("sample_time", sample_time)
     if shape not in _SHAPES:
@@ -263,6 +265,7 @@ def fod_sweep(
     -------
     InputSignal
         ``marks["alpha"]`` holds the sample index of each curve's turning point.
+
     """
     if np.ndim(levels) == 0:
         k = int(levels)  # type: ignore[arg-type]
@@ -334,6 +337,7 @@ def wiping_out_input(
     InputSignal
         ``marks["segment_a"]`` and ``marks["segment_b"]``: first and last sample of each
         segment (the first sample is the peak that starts it).
+
     """
     pk = [_finite("peaks", p) for p in peaks]
     lo, tr = _finite("u_min", u_min), _finite("trough", trough)
@@ -401,6 +405,7 @@ def cml_input(
     InputSignal
         ``marks["loop_a"]``: samples at ``high``, ``low`` (loop A closes when the rise after
         ``low`` passes ``high`` again); ``marks["loop_b"]``: samples at ``low``, ``high``, ``low``.
+
     """
     lo = _finite("u_min", u_min)
     low, high = (_finite("loop", v) for v in loop)
@@ -452,6 +457,7 @@ def decaying_sine(
         Centre and final value (V).
     sample_time : float
         Sampling period (s).
+
     """
     dur = _positive("duration", duration)
     f = _positive("frequency", frequency)

@@ -18,6 +18,7 @@ Example:
 >>> res = drift_test(plant, init, gain=1.6, seed=0)
 >>> res.drift > 0   # psi_a drifts up
 True
+
 """
 
 from __future__ import annotations

@@ -329,6 +329,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     -------
     argparse.ArgumentParser
         The ``experiment`` parser.
+
     """
     exp = subparsers.add_parser(
         "experiment",

@@ -51,6 +51,7 @@ class ClosedLoopResult:
     input, output, control : ndarray or None
         Applied input (V), output (V), controller output (controller units) from ``t_1``;
         ``None`` when a sweep did not keep the trace.
+
     """
 
     kind: str
@@ -147,6 +148,7 @@ def closed_loop_trials(
     Returns
     -------
     list of ClosedLoopResult
+
     """
     p = ClosedLoopProtocol() if protocol is None else protocol
     gains = [float(g) for g in gains]
@@ -224,5 +226,6 @@ def closed_loop_test(
     Returns
     -------
     ClosedLoopResult
+
     """
     return closed_loop_trials(plant, init, [gain], [seed], protocol)[0]

@@ -49,6 +49,7 @@ class DriftResult:
         Mean outputs over the protocol's windows (V).
     input, output : ndarray or None
         Test segment from ``t_1`` (V); ``None`` when a sweep did not keep the trace.
+
     """
 
     kind: str
@@ -136,6 +137,7 @@ def drift_trials(
     Returns
     -------
     list of DriftResult
+
     """
     p = DriftProtocol() if protocol is None else protocol
     gains = [float(g) for g in gains]
@@ -205,5 +207,6 @@ def drift_test(
     Returns
     -------
     DriftResult
+
     """
     return drift_trials(plant, init, [gain], [seed], protocol)[0]

@@ -80,6 +80,7 @@ class PIConfig:
         First sample (index into the run) at which the controller acts.
     input_gain : float
         Model-input volts per controller unit.
+
     """
 
     setpoint: float
@@ -169,6 +170,7 @@ class Plant(Protocol):
             Output (V).
         uc : ndarray
             Controller output (controller units).
+
         """
         ...
 
@@ -193,6 +195,7 @@ class ModelPlant:
         Worker threads of the batched runs; 0 uses every core.
     out_of_range : {"clamp", "raise"}, optional
         Policy for inputs outside the model range; default the model's.
+
     """
 
     def __init__(
@@ -314,6 +317,7 @@ def ss15_plants(sample_time: float | None = None, *, levels: int = 201) -> dict[
         2 Hz, 0.5 ms for 4 Hz).
     levels : int
         Table levels of the built-in models.
+
     """
     out: dict[float, ModelPlant] = {}
     for name, f in BUILTIN_MODELS.items():

@@ -92,6 +92,7 @@ def differential_drift(
     Returns
     -------
     (drift, ybar_before, ybar_after) : tuple of float
+
     """
     yb = window_mean(y, sample_time, before)
     ya = window_mean(y, sample_time, after)
@@ -121,6 +122,7 @@ def control_effort(
     -------
     (n_c, ubar_c) : tuple of float
         The 2-norm of the sample vector (controller units) and the baseline.
+
     """
     a, b = _window("effort", effort)
     ubar = window_mean(uc, sample_time, baseline)
@@ -173,6 +175,7 @@ class DriftProtocol:
         Unit-gain noise (peak 0.5 V at the DAQ connector in the thesis).
     input_gain : float
         Model-input volts per noise volt (default the SS15 amplifier, 14.12).
+
     """
 
     hold: float = 2.0
@@ -244,6 +247,7 @@ class ClosedLoopProtocol:
         Unit-gain noise.
     input_gain : float
         Model-input volts per DAQ volt (noise and controller output).
+
     """
 
     kp: float = 1.5

@@ -67,6 +67,7 @@ def state_slopes(
         = (y - y(u - a)) / a`` (V/V), and ``residual_up`` / ``residual_down`` (V): the output
         change left behind by one excursion ``u -> u + a -> u`` or ``u -> u - a -> u`` - zero-mean
         noise drifts the output by the imbalance of these two.
+
     """
     sl = model.slopes(state)
     out = {"dy_du_rising": float(sl.rising), "dy_du_falling": float(sl.falling)}
@@ -124,6 +125,7 @@ class SweepResult:
         seed (see ``trace`` of :func:`regulation_sweep`).
     config : dict
         Protocol, gains, seeds and plant sample times.
+
     """
 
     experiment: str
@@ -507,6 +509,7 @@ def regulation_sweep(
     Returns
     -------
     SweepResult
+
     """
     if experiment not in EXPERIMENTS:
         raise ValueError(f"experiment: expected one of {EXPERIMENTS}, got {experiment!r}")

@@ -113,6 +113,7 @@ def landing_window(
         ``y_d +/- tolerance``: the thesis reaches it through the measured locus).
     tolerance : float
         Half-width (V) of the simulation window.
+
     """
     k = _check_kind(kind)
     if thresholds not in ("simulation", "experiment"):
@@ -150,6 +151,7 @@ class Waveform:
         Frequency of the sinusoid (Hz).
     u_hat : float
         Saturation amplitude used (V).
+
     """
 
     kind: str
@@ -229,6 +231,7 @@ def neutral_input(
     Returns
     -------
     Waveform
+
     """
     f = _positive("frequency", frequency)
     ts = _positive("sample_time", sample_time)
@@ -280,6 +283,7 @@ def branch_input(
     u_hat : float, optional
         Amplitude (V); default: the saturation of ``u_range`` (``u_max`` for the upper, ``-u_min``
         for the lower excursion).
+
     """
     k = _check_kind(kind)
     if k == "n":
@@ -330,6 +334,7 @@ class Initialisation:
         Snapshot of the plant after ``t_1`` (``None`` for plants that cannot restore one).
     l_inverse : float or None
         For psi_n: ``N_inv(y_d)`` from the locus, before any correction on the plant (V).
+
     """
 
     kind: str
@@ -515,6 +520,7 @@ def drive_to_state(
         If ``y_d`` cannot be reached.
     ConvergenceError
         If the search does not land in the window within ``max_iter`` runs.
+
     """
     k = _check_kind(kind)
     y_d = float(y_d)
@@ -599,6 +605,7 @@ def measure_locus(
     -------
     NeutralLocus
         ``source="measured"`` (inverted by linear interpolation).
+
     """
     ls = np.asarray(offsets, dtype=float)
     lo, hi = (float(v) for v in plant.input_range)

@@ -82,7 +82,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -132,6 +132,7 @@ class CurveRecord:
         the monotone envelope).
     direction : str
         ``"descending"`` (FOD) or ``"ascending"`` (FORC).
+
     """
 
     index: int
@@ -142,7 +143,7 @@ class CurveRecord:
     t_turn: float
     t_stop: float
     turning_value: float
-    level: Optional[int]
+    level: int | None
     first_order: bool
     used: bool
     reason: str
@@ -192,6 +193,7 @@ class FODData:
         How ``levels`` were obtained ("given", "regular grid inferred ...", "fallback ...").
     n_samples : int
         Number of samples in the recording.
+
     """
 
     levels: NDArray[np.float64]
@@ -287,15 +289,15 @@ class FODData:
 # ------------------------------------------------------------------------------------------
 def find_fod_curves(
     t: Any,
-    u: Optional[ArrayLike] = None,
-    y: Optional[ArrayLike] = None,
-    levels: Optional[ArrayLike] = None,
+    u: ArrayLike | None = None,
+    y: ArrayLike | None = None,
+    levels: ArrayLike | None = None,
     *,
-    u_min: Optional[float] = None,
-    u_max: Optional[float] = None,
-    saturation_tol: Optional[float] = None,
-    reversal_tol: Optional[float] = None,
-    level_tol: Optional[float] = None,
+    u_min: float | None = None,
+    u_max: float | None = None,
+    saturation_tol: float | None = None,
+    reversal_tol: float | None = None,
+    level_tol: float | None = None,
 ) -> FODData:
     """Find the first-order descending (FOD) curves in a recording and grid their outputs.
 
@@ -334,21 +336,22 @@ def find_fod_curves(
     ValueError
         On arrays of different lengths, fewer than 2 samples, non-finite values, decreasing
         ``t``, bad levels or tolerances; the message names the argument.
+
     """
     return _find(t, u, y, levels, +1.0, u_min, u_max, saturation_tol, reversal_tol, level_tol)
 
 
 def find_forc_curves(
     t: Any,
-    u: Optional[ArrayLike] = None,
-    y: Optional[ArrayLike] = None,
-    levels: Optional[ArrayLike] = None,
+    u: ArrayLike | None = None,
+    y: ArrayLike | None = None,
+    levels: ArrayLike | None = None,
     *,
-    u_min: Optional[float] = None,
-    u_max: Optional[float] = None,
-    saturation_tol: Optional[float] = None,
-    reversal_tol: Optional[float] = None,
-    level_tol: Optional[float] = None,
+    u_min: float | None = None,
+    u_max: float | None = None,
+    saturation_tol: float | None = None,
+    reversal_tol: float | None = None,
+    level_tol: float | None = None,
 ) -> FODData:
     """Find the first-order reversal curves (FORC) from positive saturation in a recording.
 
@@ -373,6 +376,7 @@ def find_forc_curves(
     ------
     ValueError
         As for :func:`find_fod_curves`.
+
     """
     return _find(t, u, y, levels, -1.0, u_min, u_max, saturation_tol, reversal_tol, level_tol)
 
@@ -462,7 +466,7 @@ def _validate(
     return ta, ua, ya
 
 
-def _tol(name: str, value: Optional[float], default: float, allow_zero: bool) -> float:
+def _tol(name: str, value: float | None, default: float, allow_zero: bool) -> float:
     if value is None:
         return default
     v = float(value)
@@ -590,7 +594,7 @@ def _classify(
 
 def _infer_levels(
     values: NDArray[np.float64], s_min: float, s_max: float, level_tol: float,
-) -> Optional[NDArray[np.float64]]:
+) -> NDArray[np.float64] | None:
     """Regular grid through the clustered ``values`` (working frame), or None."""
     if values.size < 3:
         return None
@@ -650,9 +654,9 @@ def _read_branch(
 
 
 def _find(
-    t: Any, u: Any, y: Any, levels: Optional[ArrayLike], sign: float,
-    u_min: Optional[float], u_max: Optional[float], saturation_tol: Optional[float],
-    reversal_tol: Optional[float], level_tol: Optional[float],
+    t: Any, u: Any, y: Any, levels: ArrayLike | None, sign: float,
+    u_min: float | None, u_max: float | None, saturation_tol: float | None,
+    reversal_tol: float | None, level_tol: float | None,
 ) -> FODData:
     ta, ua, ya = _validate(t, u, y)
     fr = _Frame(sign)
@@ -719,7 +723,7 @@ def _find(
     for c_no, c in enumerate(cands):
         k, stop = c.turn, c.stop
         bs, by = s[k:stop + 1], ya[k:stop + 1]
-        level: Optional[int] = None
+        level: int | None = None
         used = False
         n_nodes = 0
         reason = c.reason

@@ -20,7 +20,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Optional, Union
+from typing import TYPE_CHECKING, Any, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -72,6 +72,7 @@ class Residuals:
         ``max |e|`` and ``sqrt(mean e^2)`` (V), ``e`` = model - measurement.
     output_range : float
         Range (V) the percentages refer to.
+
     """
 
     name: str
@@ -129,6 +130,7 @@ class DataUsage:
         Samples the identification used: fitted samples (lsq) or samples on used FOD curves.
     note : str
         Details (curves used/rejected, burn-in, ...).
+
     """
 
     name: str
@@ -164,6 +166,7 @@ class ProjectionSummary:
         Whether the projection converged to its tolerance.
     sweeps : int
         Sweeps of Hildreth's method.
+
     """
 
     n_negative: int
@@ -231,18 +234,19 @@ class IdentificationReport:
         Cells of the final table with negative mass (not in Mp when > 0).
     elapsed : float
         Wall-clock seconds of the identification.
+
     """
 
     method: str
     model: PreisachModel
     data: list[DataUsage] = field(default_factory=list)
     residuals: list[Residuals] = field(default_factory=list)
-    node_residuals: Optional[Residuals] = None
+    node_residuals: Residuals | None = None
     warnings: list[str] = field(default_factory=list)
-    fod: Optional[FODData] = field(default=None, repr=False)
-    surface_fit: Optional[SurfaceFitResult] = field(default=None, repr=False)
-    projection: Optional[ProjectionSummary] = None
-    lsq: Optional[LsqDetails] = field(default=None, repr=False)
+    fod: FODData | None = field(default=None, repr=False)
+    surface_fit: SurfaceFitResult | None = field(default=None, repr=False)
+    projection: ProjectionSummary | None = None
+    lsq: LsqDetails | None = field(default=None, repr=False)
     negative_cells: int = 0
     elapsed: float = 0.0
 
@@ -421,7 +425,7 @@ def _unique_names(recs: Sequence[Any]) -> list[str]:
 
 def _levels_arg(
     levels: ArrayLike | int | None, lo: float, hi: float
-) -> Optional[NDArray[np.float64]]:
+) -> NDArray[np.float64] | None:
     if levels is None:
         return None
     if np.ndim(levels) == 0:
@@ -618,6 +622,7 @@ def weight_density(model: PreisachModel) -> tuple[NDArray[np.float64], NDArray[n
         ``kappa[i]`` (V/V): the mass of the diagonal half-cell ``i`` divided by its width - half
         the initial slope dy/dbeta of the FOD curves there (Eq 2.14).  It includes the
         half-cell's share of ``v`` (O(h) smaller).
+
     """
     v, kappa = _core.weight_density(model.table)
     return np.asarray(v), np.asarray(kappa)
@@ -653,6 +658,7 @@ def project_nonnegative(
     summary : ProjectionSummary
         Cells that were negative, mass moved (absolute and as a fraction of the total), node
         changes, what was kept.
+
     """
     r = _core.project_nonnegative(model.table, keep_y_max, float(tol))
     meta = dict(model.metadata)
@@ -705,6 +711,7 @@ def identify_fod(
     model : PreisachModel
         On the FOD levels; ``y_min`` is the mean measured FOD end point.
     report : IdentificationReport
+
     """
     t0 = time.perf_counter()
     if gaps not in ("fill", "raise"):
@@ -807,6 +814,7 @@ def identify_surface(
     model : PreisachModel
     report : IdentificationReport
         ``surface_fit`` holds the Table 3.1-style parameters and fit errors.
+
     """
     t0 = time.perf_counter()
     check_policy(initial_state)
@@ -845,12 +853,12 @@ def identify_lsq(
     recordings: Any,
     levels: ArrayLike | int = 41,
     *,
-    lambdas: Union[str, Sequence[float]] = "auto",
+    lambdas: str | Sequence[float] = "auto",
     folds: int = 5,
     initial_state: InitialState = "burn-in",
     delay: int = 0,
     nonnegative: bool = True,
-    u_range: Optional[tuple[float, float]] = None,
+    u_range: tuple[float, float] | None = None,
     name: str = "",
 ) -> tuple[PreisachModel, IdentificationReport]:
     """Least-squares identification of the Everett table from arbitrary recordings.
@@ -889,6 +897,7 @@ def identify_lsq(
     model : PreisachModel
     report : IdentificationReport
         ``lsq`` holds the cross-validation curve and the chosen lambda.
+
     """
     t0 = time.perf_counter()
     recs = _recordings(recordings)

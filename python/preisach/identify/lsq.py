@@ -53,7 +53,7 @@ import math
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Optional, Union
+from typing import Any, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -120,6 +120,7 @@ class LsqDetails:
     timings : dict of str to float
         Wall-clock seconds per stage (``normal_equations``, ``transform``, ``cross_validation``,
         ``final_fit``).
+
     """
 
     lambdas: NDArray[np.float64]
@@ -184,6 +185,7 @@ def burn_in_end(u: ArrayLike, u_min: float, u_max: float) -> tuple[int, bool]:
     exact : bool
         ``True`` when the input reached ``u_min`` or ``u_max`` by ``index`` (a saturation: the
         state is exact); ``False`` when only the recording's own extremes were visited.
+
     """
     uu = np.asarray(u, dtype=float)
     if uu.ndim != 1 or uu.size == 0:
@@ -285,6 +287,7 @@ def roughness_matrix(levels: ArrayLike) -> NDArray[np.float64]:
     Returns
     -------
     ndarray, shape (rows, n (n - 1) / 2)
+
     """
     lv = np.asarray(levels, dtype=float)
     n = lv.size
@@ -335,7 +338,7 @@ def roughness_matrix(levels: ArrayLike) -> NDArray[np.float64]:
 def solve_nonnegative_qp(
     H: NDArray[np.float64],
     g: NDArray[np.float64],
-    free: Optional[NDArray[np.bool_]] = None,
+    free: NDArray[np.bool_] | None = None,
     max_iter: int = 500,
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], int, bool]:
     """Minimise ``x^T H x / 2 - g^T x`` subject to ``x >= 0`` (``H`` symmetric positive definite).
@@ -370,6 +373,7 @@ def solve_nonnegative_qp(
     iterations : int
     converged : bool
         ``False`` if ``max_iter`` was reached (``x`` is then the last iterate clipped at 0).
+
     """
     m = g.size
     F = np.ones(m, dtype=bool) if free is None else free.copy()
@@ -553,8 +557,8 @@ def _fit(
     P: NDArray[np.float64],
     lam: float,
     nonneg: bool,
-    free: Optional[NDArray[np.bool_]],
-) -> tuple[NDArray[np.float64], Optional[NDArray[np.bool_]], int, bool]:
+    free: NDArray[np.bool_] | None,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_] | None, int, bool]:
     """Penalised fit of theta = (w, y_min) from a reduced system."""
     m = red.g.size
     Hr = red.H + lam * P
@@ -575,7 +579,7 @@ def identify_lsq_core(
     recordings: Sequence[Any],
     levels: NDArray[np.float64],
     *,
-    lambdas: Union[str, Sequence[float]],
+    lambdas: str | Sequence[float],
     folds: int,
     initial_state: InitialState,
     delay: int,
@@ -617,7 +621,7 @@ def identify_lsq_core(
     t0 = time.perf_counter()
     reduced = [_reduce(Gtot - prep.gram[k], btot - prep.rhs[k]) for k in range(folds)]
     sse: dict[float, NDArray[np.float64]] = {}
-    free_sets: dict[float, list[Optional[NDArray[np.bool_]]]] = {}
+    free_sets: dict[float, list[NDArray[np.bool_] | None]] = {}
 
     def evaluate(values: Iterable[float]) -> None:
         for lv in values:
@@ -631,7 +635,7 @@ def identify_lsq_core(
             )
             warm = free_sets[near] if near is not None else [None] * folds
             row = np.zeros(folds)
-            frees: list[Optional[NDArray[np.bool_]]] = []
+            frees: list[NDArray[np.bool_] | None] = []
             for k in range(folds):
                 theta, fr, _, _ = _fit(reduced[k], Ps, lv, nonnegative, warm[k])
                 frees.append(fr)

@@ -19,7 +19,7 @@ y in volts (V), the density v in V/V^2, kappa in V/V, time in seconds (s).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Optional
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,7 +53,7 @@ def _new_figure(**kwargs: Any) -> Figure:
     return _Figure(**kwargs)
 
 
-def _axes(ax: Optional[Axes], three_d: bool = False, **fig_kw: Any) -> tuple[Figure, Axes]:
+def _axes(ax: Axes | None, three_d: bool = False, **fig_kw: Any) -> tuple[Figure, Axes]:
     if ax is not None:
         return ax.figure, ax  # type: ignore[return-value]
     fig = _new_figure(**fig_kw)
@@ -87,10 +87,10 @@ def _fod_y(
 
 
 def plot_fod_data(
-    fod: Optional[FODData] = None,
-    model: Optional[PreisachModel] = None,
+    fod: FODData | None = None,
+    model: PreisachModel | None = None,
     *,
-    ax: Optional[Axes] = None,
+    ax: Axes | None = None,
     points: int = 200,
 ) -> Figure:
     """Measured FOD curves (dashed, markers) and a model's FOD curves (solid), Figs 3.18-3.20.
@@ -105,6 +105,7 @@ def plot_fod_data(
         Draw here instead of on a new figure.
     points : int
         Points per model curve.
+
     """
     if fod is None and model is None:
         raise ValueError("plot_fod_data: give fod data, a model, or both")
@@ -159,9 +160,9 @@ def _triangle(model: PreisachModel, n: int) -> tuple[NDArray[np.float64], NDArra
 def plot_fod_surface(
     model: PreisachModel,
     *,
-    fod: Optional[FODData] = None,
+    fod: FODData | None = None,
     coords: str = "alpha-beta",
-    ax: Optional[Axes] = None,
+    ax: Axes | None = None,
     resolution: int = 41,
 ) -> Figure:
     """Draw the FOD surface y(alpha, beta) of a model as a 3-D surface, with measured points.
@@ -179,6 +180,7 @@ def plot_fod_surface(
         Draw here (a 3-D axes) instead of on a new figure.
     resolution : int
         Grid points per side of the triangle.
+
     """
     _check_coords(coords)
     fig, ax = _axes(ax, three_d=True, figsize=(6.5, 5.5))
@@ -203,7 +205,7 @@ def plot_weights(
     model: PreisachModel,
     *,
     coords: str = "alpha-beta",
-    ax: Optional[Axes] = None,
+    ax: Axes | None = None,
 ) -> Figure:
     """Draw the density v (V/V^2) of a model's weight as a 3-D surface over the cell centres.
 
@@ -215,6 +217,7 @@ def plot_weights(
         (alpha, beta) as Figs 3.36/3.38/3.40, or (r, s) as Figs 3.42-3.44.
     ax : Axes3D, optional
         Draw here (a 3-D axes) instead of on a new figure.
+
     """
     from .identifiers import weight_density
 
@@ -237,7 +240,7 @@ def plot_weights(
     return fig
 
 
-def plot_kappa(model: PreisachModel, *, ax: Optional[Axes] = None) -> Figure:
+def plot_kappa(model: PreisachModel, *, ax: Axes | None = None) -> Figure:
     """Kappa (V/V) of the diagonal half-cells against their centre beta = alpha (V), Eq 2.14."""
     from .identifiers import weight_density
 
@@ -254,7 +257,7 @@ def plot_kappa(model: PreisachModel, *, ax: Optional[Axes] = None) -> Figure:
     return fig
 
 
-def plot_cv(details: LsqDetails, *, ax: Optional[Axes] = None) -> Figure:
+def plot_cv(details: LsqDetails, *, ax: Axes | None = None) -> Figure:
     """Cross-validated RMS error (V) against the smoothness weight lambda (log axis)."""
     fig, ax = _axes(ax, figsize=(6, 4))
     lam = np.asarray(details.lambdas, dtype=float)
@@ -281,7 +284,7 @@ def plot_cv(details: LsqDetails, *, ax: Optional[Axes] = None) -> Figure:
     return fig
 
 
-def plot_report(report: IdentificationReport, *, fig: Optional[Figure] = None) -> Figure:
+def plot_report(report: IdentificationReport, *, fig: Figure | None = None) -> Figure:
     """Draw an identification report in six panels.
 
     FOD data and the model's FOD curves (or the CV curve for lsq), the FOD surface in
@@ -306,7 +309,7 @@ def plot_report(report: IdentificationReport, *, fig: Optional[Figure] = None) -
     return fig
 
 
-def plot_verification(table: VerificationTable, *, fig: Optional[Figure] = None) -> Figure:
+def plot_verification(table: VerificationTable, *, fig: Figure | None = None) -> Figure:
     """Per experiment: measured and simulated output against time (s), and the error (V)."""
     n = len(table.predictions)
     if n == 0:

@@ -62,7 +62,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Optional, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -121,6 +120,7 @@ class SurfaceFitResult:
         ``root_sum_sq_error`` of ``unrefined_surface`` (V); ``nan`` if it is ``None``.
     refined : bool
         Whether ``surface`` comes from the joint least-squares refinement.
+
     """
 
     surface: SqrtSurface
@@ -133,7 +133,7 @@ class SurfaceFitResult:
     root_sum_sq_error: float
     n_points: int
     warnings: list[str] = field(default_factory=list)
-    unrefined_surface: Optional[SqrtSurface] = None
+    unrefined_surface: SqrtSurface | None = None
     unrefined_root_sum_sq_error: float = float("nan")
     refined: bool = False
 
@@ -159,12 +159,13 @@ class SurfaceFitResult:
         str
             Rows ``xbar4, xbar5, x7, x8, x9, umax, umin, ymax, ymin, error`` (inputs and outputs
             in volts; ``error`` is ``root_sum_sq_error``).
+
         """
         return format_table([self], digits=digits)
 
 
 def format_table(
-    fits: Iterable[Union[SurfaceFitResult, SqrtSurface]], digits: int = 3
+    fits: Iterable[SurfaceFitResult | SqrtSurface], digits: int = 3
 ) -> str:
     """Format surfaces side by side like Table 3.1 of the thesis.
 
@@ -186,6 +187,7 @@ def format_table(
     --------
     >>> from preisach.surface import TABLE_3_1
     >>> print(format_table(TABLE_3_1.values()))  # doctest: +SKIP
+
     """
     surfaces: list[SqrtSurface] = []
     errors: list[float] = []
@@ -376,7 +378,7 @@ def _f3_max(x7: float, x8: float, x9: float, u_min: float, u_max: float) -> floa
     return max(x7 * a * a + x8 * a + x9 for a in cand)
 
 
-def _try_surface(params: Sequence[float], **kw: float) -> Optional[SqrtSurface]:
+def _try_surface(params: Sequence[float], **kw: float) -> SqrtSurface | None:
     if not all(math.isfinite(float(v)) for v in params):
         return None
     try:
@@ -503,6 +505,7 @@ def fit_sqrt_surface(
     least-squares refinement.  If the polynomial-stage ``f3`` reaches ``u_min`` somewhere (the
     square roots would not be real), ``x9`` is lowered until it does not and a warning is
     recorded.
+
     """
     lv, yg, warns = _validate(levels, y_grid, frequency, y_min_source)
     n = lv.size
@@ -531,7 +534,7 @@ def fit_sqrt_surface(
 
     params: list[NDArray[np.float64]] = []
     rms: list[float] = []
-    prev: Optional[NDArray[np.float64]] = None
+    prev: NDArray[np.float64] | None = None
     for c in curves:
         start = _linear_guess(c.beta, c.y) if prev is None else prev
         p, conv = _fit_curve(c, start, y_scale)
@@ -593,7 +596,7 @@ def fit_sqrt_surface(
         warns.append("the polynomial-stage surface is not a valid Eq 3.2 surface")
 
     # ---- step 4: joint least-squares refinement -----------------------------------------
-    final_p: Optional[list[float]] = list(p0) if unrefined is not None else None
+    final_p: list[float] | None = list(p0) if unrefined is not None else None
     refined = False
     if refine:
         s = max(abs(u_min), abs(u_max))

@@ -33,7 +33,13 @@ struct Safety {
     double ramp_rate = 500.0;  // V/s: rate of the ramp to 0 V after an abort or a stop request
     double y_min = -std::numeric_limits<double>::infinity();  // primary input limits; a reading
     double y_max = std::numeric_limits<double>::infinity();   // outside aborts the trial
-    long long max_missed_deadlines = 10;  // abort when more deadlines are missed (< 0: never)
+    // Deadline budgets (real-time runs).  A single late sample only holds the previous output
+    // one period longer; what endangers a regulated actuator is a stall: many deadlines in a
+    // row without a fresh output.  Abort when more than max_consecutive_missed deadlines are
+    // missed in a row (default 20: 20 ms at 1 kHz), or more than max_missed_deadlines in total
+    // (< 0: no limit, the default; every miss is still counted and recorded).
+    long long max_missed_deadlines = -1;
+    long long max_consecutive_missed = 20;
 
     void validate() const {
         if (!(std::isfinite(u_min) && std::isfinite(u_max) && u_min <= 0.0 && 0.0 <= u_max))
@@ -44,6 +50,8 @@ struct Safety {
             throw std::invalid_argument("safety: ramp_rate must be a positive finite number of V/s");
         if (std::isnan(y_min) || std::isnan(y_max) || !(y_min < y_max))
             throw std::invalid_argument("safety: input limits [y_min, y_max] must satisfy y_min < y_max");
+        if (max_consecutive_missed == 0)
+            throw std::invalid_argument("safety: max_consecutive_missed must be >= 1 (or < 0 for no limit)");
     }
 };
 
@@ -222,6 +230,7 @@ public:
         std::string reason;
         std::exception_ptr error;
         double late_sum = 0.0;
+        std::size_t in_a_row = 0;  // deadlines missed in a row (real-time runs)
         std::size_t rows = 0;
         bool device_ok = true;
 
@@ -359,14 +368,23 @@ public:
             progress_.store(k, std::memory_order_relaxed);
             if (rt && clock::now() > deadline + period_ns) {
                 ++res.missed_deadlines;
+                ++in_a_row;
                 if (res.missed.size() < 1024) res.missed.push_back(k - 1);
-                if (safety.max_missed_deadlines >= 0 &&
-                    (long long)res.missed_deadlines > safety.max_missed_deadlines) {
+                const auto over = [](std::size_t n, long long budget) { return budget >= 0 && (long long)n > budget; };
+                if (over(in_a_row, safety.max_consecutive_missed)) {
+                    abort_with(std::to_string(in_a_row) + " deadlines missed in a row exceed the budget of " +
+                               std::to_string(safety.max_consecutive_missed) + " (stalled at sample " +
+                               std::to_string(k - in_a_row) + ")");
+                    break;
+                }
+                if (over(res.missed_deadlines, safety.max_missed_deadlines)) {
                     abort_with(std::to_string(res.missed_deadlines) + " missed deadlines exceed the budget of " +
                                std::to_string(safety.max_missed_deadlines) + " (last at sample " +
                                std::to_string(k - 1) + ")");
                     break;
                 }
+            } else {
+                in_a_row = 0;
             }
         }
         if (end == End::running) {
