@@ -12,13 +12,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .plant import Plant
-from .protocol import ClosedLoopProtocol, control_effort, window_mean
+from .protocol import ClosedLoopProtocol, TrialResult, control_effort, window_mean
 from .waveforms import Initialisation
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -28,13 +28,13 @@ __all__ = ["ClosedLoopResult", "closed_loop_test", "closed_loop_trials"]
 
 
 @dataclass
-class ClosedLoopResult:
+class ClosedLoopResult(TrialResult):
     """One closed-loop trial.
 
     Attributes
     ----------
     kind, frequency, gain, seed, sample_time, offset
-        As in :class:`DriftResult`.
+        As in :class:`~preisach.experiments.protocol.TrialResult`.
     setpoint : float
         ``y_d`` (V).
     nc : float
@@ -54,12 +54,6 @@ class ClosedLoopResult:
 
     """
 
-    kind: str
-    frequency: float
-    gain: float
-    seed: int
-    sample_time: float
-    offset: float
     setpoint: float
     nc: float
     nc_l2: float
@@ -69,29 +63,6 @@ class ClosedLoopResult:
     input: NDArray[np.float64] | None = field(default=None, repr=False)
     output: NDArray[np.float64] | None = field(default=None, repr=False)
     control: NDArray[np.float64] | None = field(default=None, repr=False)
-
-    @property
-    def time(self) -> NDArray[np.float64]:
-        """Sample times after ``t_1`` (s)."""
-        if self.output is None:
-            raise ValueError("this result kept no trace (time, input, output, control)")
-        return np.asarray(np.arange(len(self.output)) * self.sample_time, dtype=np.float64)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Return the scalar results (no trace) as a dict."""
-        return {
-            "kind": self.kind,
-            "frequency": self.frequency,
-            "gain": self.gain,
-            "seed": self.seed,
-            "offset": self.offset,
-            "setpoint": self.setpoint,
-            "nc": self.nc,
-            "nc_l2": self.nc_l2,
-            "uc_baseline": self.uc_baseline,
-            "error_rms": self.error_rms,
-            "error_final": self.error_final,
-        }
 
     def plot(self, *, fig: Figure | None = None) -> Figure:
         """Output, controller output and input against time after ``t_1``."""

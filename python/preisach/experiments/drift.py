@@ -10,13 +10,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .plant import Plant
-from .protocol import DriftProtocol, differential_drift
+from .protocol import DriftProtocol, TrialResult, differential_drift
 from .waveforms import Initialisation
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -26,23 +26,14 @@ __all__ = ["DriftResult", "drift_test", "drift_trials"]
 
 
 @dataclass
-class DriftResult:
+class DriftResult(TrialResult):
     """One open-loop drift trial.
+
+    The fields of :class:`~preisach.experiments.protocol.TrialResult` (state, frequency, gain,
+    seed, sample time, offset), and:
 
     Attributes
     ----------
-    kind : str
-        Initial state, ``"n"``, ``"a"`` or ``"d"``.
-    frequency : float
-        Initialisation frequency (Hz).
-    gain : float
-        Noise gain ``K_n``.
-    seed : int
-        Noise seed.
-    sample_time : float
-        Sampling period (s).
-    offset : float
-        Input held from ``t_1`` (V).
     drift : float
         ``ybar_after - ybar_before`` (V).
     ybar_before, ybar_after : float
@@ -52,37 +43,11 @@ class DriftResult:
 
     """
 
-    kind: str
-    frequency: float
-    gain: float
-    seed: int
-    sample_time: float
-    offset: float
     drift: float
     ybar_before: float
     ybar_after: float
     input: NDArray[np.float64] | None = field(default=None, repr=False)
     output: NDArray[np.float64] | None = field(default=None, repr=False)
-
-    @property
-    def time(self) -> NDArray[np.float64]:
-        """Sample times after ``t_1`` (s)."""
-        if self.output is None:
-            raise ValueError("this result kept no trace (time, input, output)")
-        return np.asarray(np.arange(len(self.output)) * self.sample_time, dtype=np.float64)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Return the scalar results (no trace) as a dict."""
-        return {
-            "kind": self.kind,
-            "frequency": self.frequency,
-            "gain": self.gain,
-            "seed": self.seed,
-            "offset": self.offset,
-            "drift": self.drift,
-            "ybar_before": self.ybar_before,
-            "ybar_after": self.ybar_after,
-        }
 
     def plot(self, *, fig: Figure | None = None) -> Figure:
         """Input and output against time after ``t_1``, with the averaging windows marked."""

@@ -25,7 +25,7 @@ state and frequency at one sample time, so comparisons between states are paired
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from functools import lru_cache
 from typing import Any
 
@@ -157,6 +157,51 @@ def _check_common(obj: Any) -> None:
         raise ValueError(f"input_gain: must be positive (V per V), got {obj.input_gain!r}")
     if not isinstance(obj.noise, NoiseSpec):
         raise TypeError(f"noise: expected a NoiseSpec, got {type(obj.noise).__name__}")
+
+
+@dataclass
+class TrialResult:
+    """What every trial result has (the base of the drift and closed-loop results).
+
+    Attributes
+    ----------
+    kind : str
+        Initial state, ``"n"``, ``"a"`` or ``"d"``.
+    frequency : float
+        Initialisation frequency (Hz).
+    gain : float
+        Noise gain ``K_n``.
+    seed : int
+        Noise seed.
+    sample_time : float
+        Sampling period (s).
+    offset : float
+        Input held from ``t_1`` (V).
+
+    """
+
+    kind: str
+    frequency: float
+    gain: float
+    seed: int
+    sample_time: float
+    offset: float
+
+    #: Fields holding traces (arrays from ``t_1``), left out of :meth:`to_dict`.
+    TRACES = ("input", "output", "control")
+
+    @property
+    def time(self) -> NDArray[np.float64]:
+        """Sample times after ``t_1`` (s)."""
+        output = getattr(self, "output", None)
+        if output is None:
+            raise ValueError("this result kept no trace (time, input, output)")
+        return np.asarray(np.arange(len(output)) * self.sample_time, dtype=np.float64)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the scalar results (no trace, no sample time) as a dict."""
+        return {f.name: getattr(self, f.name) for f in fields(self)
+                if f.name not in self.TRACES and f.name != "sample_time"}
 
 
 @dataclass(frozen=True)
