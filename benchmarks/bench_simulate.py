@@ -71,13 +71,19 @@ def main() -> None:
     tn = best_of(lambda: model.simulate_batch(U, s0, threads=0), args.repeats)
 
     print(f"model: {model}")
-    print(f"simulate, {args.samples:.0e}-sample random walk, {args.levels} levels: "
-          f"{fast / 1e6:8.1f} M samples/s")
-    print(f"NumPy relay grid 200x200 ({ref.weights.size} relays), {ur.size} samples:     "
-          f"{slow / 1e6:8.4f} M samples/s   (max |difference| {gap * 1e3:.2f} mV)")
+    print(
+        f"simulate, {args.samples:.0e}-sample random walk, {args.levels} levels: "
+        f"{fast / 1e6:8.1f} M samples/s"
+    )
+    print(
+        f"NumPy relay grid 200x200 ({ref.weights.size} relays), {ur.size} samples:     "
+        f"{slow / 1e6:8.4f} M samples/s   (max |difference| {gap * 1e3:.2f} mV)"
+    )
     print(f"speed ratio simulate / relay grid: {fast / slow:,.0f}x")
-    print(f"batch {runs} runs x {per} samples: 1 thread {runs * per / t1 / 1e6:.1f} M/s, "
-          f"{cores} threads {runs * per / tn / 1e6:.1f} M/s, speed-up {t1 / tn:.2f}x")
+    print(
+        f"batch {runs} runs x {per} samples: 1 thread {runs * per / t1 / 1e6:.1f} M/s, "
+        f"{cores} threads {runs * per / tn / 1e6:.1f} M/s, speed-up {t1 / tn:.2f}x"
+    )
 
 
 if __name__ == "__main__":

@@ -4,10 +4,9 @@ Run:  python examples/simulate.py            -> writes simulate.png in the curre
 """
 
 import numpy as np
-
 from preisach import PreisachModel
 
-model = PreisachModel.builtin("ss15-1hz")           # V_in on [-100, 100] V -> strain gauge V
+model = PreisachModel.builtin("ss15-1hz")  # V_in on [-100, 100] V -> strain gauge V
 
 # A decaying 1 Hz sinusoid about 20 V, sampled at 1 kHz, from the anhysteretic state.
 t = np.arange(0.0, 8.0, 1e-3)

@@ -13,13 +13,18 @@ recordings and diagnosed, with the identification part given as identification d
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-DATA = ROOT.parent / "shared" / "data" / "yan9a-piezo" / "Model_Vi_Do.dat"
+DATA = (
+    Path(os.environ.get("PREISACH_DATA") or ROOT.parent / "shared" / "data")
+    / "yan9a-piezo"
+    / "Model_Vi_Do.dat"
+)
 
 
 def load(path: Path = DATA, ident_cycles: int = 10, pieces: int = 4):

@@ -19,62 +19,72 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
-
-KINDS = (
-    "none",
-    "rate_dependence",
-    "structural_resonance",
-    "creep",
-    "delay",
-    "sensor_drift",
-    "non_congruence",
-)
 
 
 def run_case(job: dict[str, Any]) -> dict[str, Any]:
+    """One randomised case: effect size and noise level drawn from the case's seed."""
     import numpy as np
-    from preisach.diagnose import diagnose
-    from preisach.diagnose.cases import make_case
+    from preisach.diagnose.cases import run_case as run
 
     rng = np.random.default_rng(job["seed"] + 100_003)
     size = float(rng.uniform(job["size_min"], job["size_max"]))
     sigma = float(rng.uniform(0.7e-3, 1.5e-3))
-    t0 = time.perf_counter()
-    case = make_case(
+    return run(
         job["kind"],
-        effect_size=size,
+        generator=job["generator"],
         seed=job["seed"],
+        effect_size=size,
         sigma=sigma,
         scale=job["scale"],
-        generator=job["generator"],
+        cv=job["cv"],
     )
-    model = case.identify()
-    rep = diagnose(model, case.recordings, identification=case.identification, cv=job["cv"])
-    out = {
-        "kind": job["kind"],
-        "seed": job["seed"],
-        "size": float(case.truth["effect_size"]),
-        "sigma": sigma,
-        "verdict": rep.verdict,
-        "effects": [e.name for e in rep.effects],
-        "rmse_before": rep.rmse_before,
-        "rmse_after": rep.rmse_after,
-        "truth": case.truth,
-        "seconds": time.perf_counter() - t0,
-    }
-    if rep.effects:
-        e = rep.effects[0]
-        out["gain"] = 1 - e.heldout_rmse_after / e.heldout_rmse_before
-        out["params"] = {
-            k: v["value"] for k, v in e.parameters.items() if isinstance(v, dict) and "value" in v
-        }
-    return out
+
+
+def _rig_check(k: str, p: dict[str, float], t: dict[str, Any]) -> str:
+    """Fitted vs true parameters for a case of the virtual rig's blocks."""
+    tp = t["params"]
+    blocks = {b["kind"]: b for b in tp.get("input_blocks", []) + tp.get("output_blocks", [])}
+    if k == "rate_dependence":
+        true = f"rig input lag {1e3 * blocks['input_lag']['time_constant']:.3f} ms"
+        if "tau" in p:
+            return f"input lag {1e3 * p['tau']:.3f} ms ({true})"
+        return ", ".join(f"{n} {v:.3g}" for n, v in p.items()) + f" ({true})"
+    if k == "structural_resonance":
+        m = blocks["structural_mode"]
+        return (
+            f"f_n {p['f_n']:.1f} Hz (truth {m['frequency']:.1f}), zeta {p['zeta']:.3f} "
+            f"(truth {m['damping']:.3f}), participation {p['participation']:.2f} (truth 1)"
+        )
+    if k == "creep":
+        cs = [v for n, v in p.items() if n.startswith("c_")]
+        c = blocks["creep"]
+        return (
+            f"creep {100 * sum(cs) / max(len(cs), 1):.2f} %/decade (truth {100 * c['rate']:.2f} "
+            f"%/decade, {c['tau_min']:.2g}-{c['tau_max']:.2g} s)"
+        )
+    if k == "delay":
+        form = "+".join(f"{b['kind']} {b.get('samples', b.get('length'))}" for b in blocks.values())
+        return (
+            f"tau {1e3 * p['tau']:.3f} ms (truth lag {1e3 * tp['lag']:.3f} ms: {form} "
+            f"at {1e6 * tp['block_sample_time']:.0f} us)"
+        )
+    if k == "sensor_drift":
+        d = blocks["offset_drift"]
+        return (
+            f"rate {1e3 * p['rate']:+.2f} mV/s (truth {1e3 * d['rate']:+.2f} mV/s "
+            f"+ random walk {1e3 * d['sigma']:.2f} mV/sqrt(s))"
+        )
+    if k == "non_congruence":
+        return (
+            f"feedback a {p['a']:+.2f} V/V, c {p['c']:+.2f} V/V "
+            f"(truth moving gain {tp['moving_gain']:+.2f} V/V)"
+        )
+    return ""
 
 
 def _param_check(r: dict[str, Any]) -> str:
@@ -82,20 +92,13 @@ def _param_check(r: dict[str, Any]) -> str:
     t, p = r["truth"], r.get("params", {})
     k = r["kind"]
     if t.get("generator") == "rig":
-        fitted = ", ".join(f"{n} {v:.3g}" for n, v in p.items())
-        blocks = t["params"].get("input_blocks", []) + t["params"].get("output_blocks", [])
-        truth = (
-            ", ".join(f"{b}" for b in blocks)
-            or f"moving_gain {t['params'].get('moving_gain', 0):.3g}"
-        )
-        return f"{fitted} | truth {truth}"
+        return _rig_check(k, p, t)
     if k == "delay":
-        return f"tau {1e3 * p.get('tau', math.nan):.3f} ms (truth lag {1e3 * t['strength']:.3f} ms)"
+        return f"tau {1e3 * p['tau']:.3f} ms (truth lag {1e3 * t['strength']:.3f} ms)"
     if k == "structural_resonance":
         return (
-            f"f_n {p.get('f_n', math.nan):.2f} Hz (truth {t['params']['f_n']:.2f}), "
-            f"zeta {p.get('zeta', math.nan):.3f} "
-            f"(truth {t['params']['zeta']:.3f}), m {p.get('participation', math.nan):.3f} "
+            f"f_n {p['f_n']:.2f} Hz (truth {t['params']['f_n']:.2f}), zeta {p['zeta']:.3f} "
+            f"(truth {t['params']['zeta']:.3f}), m {p['participation']:.3f} "
             f"(truth {t['strength']:.3f})"
         )
     if k == "creep":
@@ -106,11 +109,14 @@ def _param_check(r: dict[str, Any]) -> str:
         )
     if k == "non_congruence":
         return (
-            f"feedback a {p.get('a', math.nan):+.3f} V/V (truth tanh gain {t['strength']:+.3f} V/V)"
+            f"feedback a {p['a']:+.2f} V/V, c {p['c']:+.2f} V/V (truth tanh gain "
+            f"{t['strength']:+.2f} V/V: linear {t['strength']:+.2f}, cubic "
+            f"{-4 * t['strength'] / 3:+.2f} V/V)"
         )
     if k == "sensor_drift":
-        return (f"p-p {1e3 * p.get('peak_to_peak', math.nan):.2f} mV "
-                f"(truth amplitude {1e3 * t['strength']:.2f} mV)")
+        return (
+            f"p-p {1e3 * p['peak_to_peak']:.2f} mV (truth amplitude {1e3 * t['strength']:.2f} mV)"
+        )
     if k == "rate_dependence":
         return ", ".join(f"{n} {v:.3g}" for n, v in p.items())
     return ""
@@ -119,7 +125,9 @@ def _param_check(r: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--per-kind", type=int, default=10, help="cases per kind (default 10)")
-    ap.add_argument("--kinds", default=",".join(KINDS))
+    from preisach.diagnose.cases import EFFECT_KINDS
+
+    ap.add_argument("--kinds", default=",".join(("none", *EFFECT_KINDS)))
     ap.add_argument(
         "--scale", type=float, default=0.5, help="duration scale of the experiments (1: 20 s sweep)"
     )
@@ -154,11 +162,26 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    results: list[dict[str, Any]] = [{} for _ in jobs]
+
+    def done(i: int, r: dict[str, Any]) -> None:
+        results[i] = r
+        n = sum(bool(x) for x in results)
+        print(
+            f"[{n}/{len(jobs)} {time.perf_counter() - t0:5.0f} s] {r['kind']} seed {r['seed']} "
+            f"-> {r['verdict']}",
+            file=sys.stderr,
+            flush=True,
+        )
+
     if a.workers > 1:
         with ProcessPoolExecutor(a.workers) as ex:
-            results = list(ex.map(run_case, jobs))
+            futures = {ex.submit(run_case, j): i for i, j in enumerate(jobs)}
+            for f in as_completed(futures):
+                done(futures[f], f.result())
     else:
-        results = [run_case(j) for j in jobs]
+        for i, j in enumerate(jobs):
+            done(i, run_case(j))
     wall = time.perf_counter() - t0
     labels = list(dict.fromkeys(["none", *kinds, *[r["verdict"] for r in results]]))
     print(
@@ -192,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     print("\nper case (truth, size, verdict, held-out gain, fitted vs true parameters):")
     for r in results:
-        gain = f"{100 * r['gain']:5.0f} %" if "gain" in r else "      "
+        gain = f"{100 * r['gain']:5.0f} %" if r["effects"] else "      "
         extra = _param_check(r) if r["verdict"] == r["kind"] and r["kind"] != "none" else ""
         more = f" (+{','.join(r['effects'][1:])})" if len(r["effects"]) > 1 else ""
         print(

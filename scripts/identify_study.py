@@ -17,6 +17,7 @@ With --out, the report figures (Figs 3.18-3.44 analogues) and verification plots
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -29,7 +30,11 @@ from preisach.waveforms import cml_input, fod_sweep, wiping_out_input
 
 LSB = 10.0 / 2**14
 ROOT = Path(__file__).resolve().parents[1]
-YAN9A = ROOT.parent / "shared" / "data" / "yan9a-piezo" / "Model_Vi_Do.dat"
+YAN9A = (
+    Path(os.environ.get("PREISACH_DATA") or ROOT.parent / "shared" / "data")
+    / "yan9a-piezo"
+    / "Model_Vi_Do.dat"
+)
 
 
 def measured(

@@ -56,9 +56,15 @@ def test_make_block_errors_name_the_problem(spec, match):
 
 
 def test_run_equals_step_and_copies_are_independent(model):
-    blocks = [InputLag(DT, 2e-3), preisach_stage(model, dt=DT, moving_gain=0.2),
-              StructuralMode(DT), Creep(DT), OffsetDrift(DT, 1e-4, 1e-3, seed=3), Delay(DT, 2),
-              MovingAverage(DT, 10)]
+    blocks = [
+        InputLag(DT, 2e-3),
+        preisach_stage(model, dt=DT, moving_gain=0.2),
+        StructuralMode(DT),
+        Creep(DT),
+        OffsetDrift(DT, 1e-4, 1e-3, seed=3),
+        Delay(DT, 2),
+        MovingAverage(DT, 10),
+    ]
     chain = BlockChain(blocks)
     assert chain.kinds == [b.kind for b in blocks] and len(chain) == 7
     u = 90 * np.sin(np.linspace(0, 12, 3000)) * np.linspace(1, 0.2, 3000)

@@ -5,7 +5,6 @@ import math
 
 import numpy as np
 import pytest
-
 from preisach.calibration import (
     SS15_CHANNEL_A,
     SS15_CHANNEL_B,

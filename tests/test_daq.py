@@ -32,8 +32,11 @@ def test_virtual_rig_applies_eq_b1b_and_one_sample_causality(model, tmp_path):
     # the output channel is Eq B.1b: the DAC gets its inverse, the rig's amplifier applies it
     assert rec.metadata["output_gain"] == SS15_CHANNEL_B.gain == -14.12
     assert rec.metadata["output_offset"] == SS15_CHANNEL_B.offset == -0.02
-    np.testing.assert_allclose(rec.u_dac if hasattr(rec, "u_dac") else rec.columns["u_dac"],
-                               SS15_CHANNEL_B.inverse(u), rtol=1e-12)
+    np.testing.assert_allclose(
+        rec.u_dac if hasattr(rec, "u_dac") else rec.columns["u_dac"],
+        SS15_CHANNEL_B.inverse(u),
+        rtol=1e-12,
+    )
     np.testing.assert_allclose(rec.u, u, rtol=1e-12, atol=1e-12)
     assert rig.actuator_voltage == pytest.approx(u[-1])
     # y[k] is read before u[k] is written: it is the model's response to u[..k-1]
@@ -65,7 +68,8 @@ def test_safety_clamp_slew_and_ramp_after_abort(model, tmp_path):
     safety = daq.SafetyLimits(slew_rate=10_000.0, ramp_rate=20_000.0)
     res = daq.run_trial(rig, ctl, tmp_path / "s.csv", sample_time=TS, safety=safety)
     assert res.end_status.startswith(
-        "aborted: controller returned a non-finite output at sample 150")
+        "aborted: controller returned a non-finite output at sample 150"
+    )
     assert res.final_output == 0.0 and rig.actuator_voltage == pytest.approx(0.0, abs=1e-12)
     rec = Recording.load(tmp_path / "s.csv")
     assert len(rec) == res.samples + res.ramp_samples == 151 + 7
@@ -77,8 +81,13 @@ def test_safety_clamp_slew_and_ramp_after_abort(model, tmp_path):
 
 def test_out_of_range_reading_aborts(model, tmp_path):
     rig = daq.virtual_ss15(model)
-    res = daq.run_trial(rig, np.full(2000, 100.0), tmp_path / "y.csv", sample_time=TS,
-                        safety=daq.SafetyLimits(y_max=2.0))
+    res = daq.run_trial(
+        rig,
+        np.full(2000, 100.0),
+        tmp_path / "y.csv",
+        sample_time=TS,
+        safety=daq.SafetyLimits(y_max=2.0),
+    )
     assert "outside the safety limits [-inf, 2] V at sample" in res.end_status
     rec = Recording.load(tmp_path / "y.csv")
     assert rec.y[res.samples - 1] > 2.0 and res.samples < 2000
@@ -118,8 +127,9 @@ def test_keyboard_interrupt_requests_a_stop_and_finishes_the_file(model, tmp_pat
         return 30.0
 
     with pytest.raises(TrialInterrupted) as info:
-        daq.run_trial(rig, daq.CallbackController(ctl, 10**7), tmp_path / "i.csv",
-                      sample_time=TS, poll=0.01)
+        daq.run_trial(
+            rig, daq.CallbackController(ctl, 10**7), tmp_path / "i.csv", sample_time=TS, poll=0.01
+        )
     res = info.value.result
     assert res.end_status == "interrupted" and 300 < res.samples < 10**7
     rec = Recording.load(tmp_path / "i.csv")
@@ -132,20 +142,33 @@ def test_keyboard_interrupt_requests_a_stop_and_finishes_the_file(model, tmp_pat
 def test_pi_controller_regulates_the_rig(model, tmp_path):
     rig = daq.virtual_ss15(model, seed=1)
     ff = np.full(4000, 20.0)
-    pi = daq.PIController(kp=1.5 * 14.12, ki=30 * 14.12, setpoint=1.0, sample_time=TS,
-                          feedforward=ff, enable_at=1000, average=25)
+    pi = daq.PIController(
+        kp=1.5 * 14.12,
+        ki=30 * 14.12,
+        setpoint=1.0,
+        sample_time=TS,
+        feedforward=ff,
+        enable_at=1000,
+        average=25,
+    )
     res = daq.run_trial(rig, pi, tmp_path / "pi.csv", sample_time=TS)
     rec = Recording.load(tmp_path / "pi.csv")
     assert res.complete
-    assert abs(rec.y[:1000].mean() - 1.0) > 0.05      # open loop: not at the setpoint
+    assert abs(rec.y[:1000].mean() - 1.0) > 0.05  # open loop: not at the setpoint
     assert rec.y[-500:].mean() == pytest.approx(1.0, abs=0.005)
     assert abs(pi.error) < 0.01
 
 
 def test_realtime_pacing_reports_lateness(model, tmp_path):
     rig = daq.virtual_ss15(model)
-    res = daq.run_trial(rig, np.zeros(200), tmp_path / "rt.csv", sample_time=TS, realtime=True,
-                        safety=daq.SafetyLimits(max_consecutive_missed=-1))
+    res = daq.run_trial(
+        rig,
+        np.zeros(200),
+        tmp_path / "rt.csv",
+        sample_time=TS,
+        realtime=True,
+        safety=daq.SafetyLimits(max_consecutive_missed=-1),
+    )
     rec = Recording.load(tmp_path / "rt.csv")
     assert res.realtime and rec.metadata["realtime"] == 1
     assert res.elapsed >= 0.19  # paced: 200 samples take at least 199 periods
@@ -163,8 +186,9 @@ def test_files_are_never_clobbered_and_metadata_is_checked(model, tmp_path):
     daq.run_trial(rig, np.zeros(5), p, sample_time=TS, overwrite=True)
     assert len(Recording.load(p)) == 5
     with pytest.raises(ValueError, match="reserved"):
-        daq.run_trial(rig, np.zeros(5), tmp_path / "z.csv", sample_time=TS,
-                      metadata={"end_status": "x"})
+        daq.run_trial(
+            rig, np.zeros(5), tmp_path / "z.csv", sample_time=TS, metadata={"end_status": "x"}
+        )
     with pytest.raises(ValueError, match="built for a sample time of 0.001"):
         daq.run_trial(rig, np.zeros(5), tmp_path / "w.csv", sample_time=2e-3)
 
@@ -208,12 +232,18 @@ def _dac_code(u):
 
 def test_comedi_protocol_replays_through_a_trial(tmp_path):
     protocol = COMEDI_PROTOCOL.format(code0=_dac_code(10.0), code1=_dac_code(20.0))
-    dev = daq._core.ComediDevice.replay(protocol, "/dev/comedi0", [daq.ss15_output_channel()],
-                                        [daq.ss15_input_channel()])
+    dev = daq._core.ComediDevice.replay(
+        protocol, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
+    )
     assert dev.description == "comedi /dev/comedi0 (pci-multiq)"
     assert dev.conversions == ["hardcal", "hardcal"] and not dev.simulated
-    res = daq.run_trial(dev, [10.0, 20.0], tmp_path / "c.csv", sample_time=TS,
-                        safety=daq.SafetyLimits(max_consecutive_missed=-1))
+    res = daq.run_trial(
+        dev,
+        [10.0, 20.0],
+        tmp_path / "c.csv",
+        sample_time=TS,
+        safety=daq.SafetyLimits(max_consecutive_missed=-1),
+    )
     assert res.complete and res.realtime  # a real device is always paced
     calls = dev.verify_protocol()
     assert calls[-1] == f"data_write 1 1 0 0 {_dac_code(20.0)}"
@@ -221,10 +251,14 @@ def test_comedi_protocol_replays_through_a_trial(tmp_path):
     np.testing.assert_allclose(rec.y, -5 + 4915 * 0.001220703125)
     # a wrong call is reported with the step, what was expected and what came
     bad = protocol.replace("find_range 0 1 -5 5", "find_range 0 1 -10 10")
-    with pytest.raises(RuntimeError, match=r"step 11: expected 'find_range 0 1 -10 10', got "
-                                           r"'find_range 0 1 -5 5'"):
-        daq._core.ComediDevice.replay(bad, "/dev/comedi0", [daq.ss15_output_channel()],
-                                      [daq.ss15_input_channel()])
+    with pytest.raises(
+        RuntimeError,
+        match=r"step 11: expected 'find_range 0 1 -10 10', got "
+        r"'find_range 0 1 -5 5'",
+    ):
+        daq._core.ComediDevice.replay(
+            bad, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
+        )
 
 
 def test_comedi_missing_device_names_the_file():
@@ -233,9 +267,12 @@ def test_comedi_missing_device_names_the_file():
     assert isinstance(info.value, OSError)
     msg = "^cannot open Comedi device '/dev/comedi3': No such file"
     with pytest.raises(DeviceError, match=msg):
-        daq._core.ComediDevice.replay("open /dev/comedi3 -> -1 : No such file or directory",
-                                      "/dev/comedi3", [daq.ss15_output_channel()],
-                                      [daq.ss15_input_channel()])
+        daq._core.ComediDevice.replay(
+            "open /dev/comedi3 -> -1 : No such file or directory",
+            "/dev/comedi3",
+            [daq.ss15_output_channel()],
+            [daq.ss15_input_channel()],
+        )
 
 
 def test_comedi_build_matches_the_library():
@@ -250,13 +287,18 @@ def test_device_plant_runs_the_experiments_like_the_model(model, tmp_path):
     from preisach.experiments import ModelPlant, closed_loop_test, drift_test, drive_to_state
 
     rig = daq.virtual_ss15(model, adc_noise=0.0, adc_bits=24)
-    plants = {"model": ModelPlant(model, TS),
-              "rig": daq.DevicePlant(rig, model=model, record_dir=tmp_path)}
+    plants = {
+        "model": ModelPlant(model, TS),
+        "rig": daq.DevicePlant(rig, model=model, record_dir=tmp_path),
+    }
     out = {}
     for name, plant in plants.items():
         init = drive_to_state(plant, "a", 1.0, 1.0)
-        out[name] = (init.offset, drift_test(plant, init, 1.6, 0).drift,
-                     closed_loop_test(plant, init, 1.6, 0).nc)
+        out[name] = (
+            init.offset,
+            drift_test(plant, init, 1.6, 0).drift,
+            closed_loop_test(plant, init, 1.6, 0).nc,
+        )
     np.testing.assert_allclose(out["rig"], out["model"], rtol=1e-5)
     runs = sorted(tmp_path.glob("run_*.csv"))
     assert runs and all(Recording.load(p).metadata["end_status"] == "complete" for p in runs)

@@ -6,13 +6,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
 from preisach.identify.fod_finder import find_fod_curves, find_forc_curves
 from preisach.reference import RelayGrid
 from preisach.surface import TABLE_3_1
 
-LEVELS = -100.0 + 10.0 * np.arange(21)          # the thesis grid {-100 + 10 i} (V)
-II, JJ = np.tril_indices(LEVELS.size)           # the 231 nodes j <= i
+LEVELS = -100.0 + 10.0 * np.arange(21)  # the thesis grid {-100 + 10 i} (V)
+II, JJ = np.tril_indices(LEVELS.size)  # the 231 nodes j <= i
 SURF = TABLE_3_1[1]
 
 
@@ -42,8 +41,8 @@ def thesis_sweep(surf=SURF, alphas=LEVELS, f=1.0, fs=1000.0):
     k = np.arange(m)
     us, ys = [], []
     for a in alphas:
-        rise = -100.0 + (a + 100.0) * k[: h + 1] / h          # ends exactly at alpha
-        fall = a - (a + 100.0) * (k[h + 1:] - h) / (m - h)
+        rise = -100.0 + (a + 100.0) * k[: h + 1] / h  # ends exactly at alpha
+        fall = a - (a + 100.0) * (k[h + 1 :] - h) / (m - h)
         u, y = fod_leg(surf, a, rise, fall)
         us.append(u)
         ys.append(y)
@@ -83,12 +82,11 @@ def test_exact_recovery_when_samples_hit_levels():
     t, u, y = exact_sweep()
     d = find_fod_curves(t, u, y)
     assert d.direction == "descending"
-    np.testing.assert_array_equal(d.levels, LEVELS)            # inferred thesis grid, exactly
+    np.testing.assert_array_equal(d.levels, LEVELS)  # inferred thesis grid, exactly
     assert "regular grid" in d.levels_source
-    assert np.all(np.isfinite(d.y_grid[II, JJ]))                # all 231 nodes
+    assert np.all(np.isfinite(d.y_grid[II, JJ]))  # all 231 nodes
     assert np.all(np.isnan(d.y_grid[np.triu_indices(21, 1)]))  # upper triangle empty
-    np.testing.assert_allclose(d.y_grid[II, JJ], expected_fod_grid()[II, JJ], rtol=0,
-                               atol=1e-12)
+    np.testing.assert_allclose(d.y_grid[II, JJ], expected_fod_grid()[II, JJ], rtol=0, atol=1e-12)
     # every FOD node is one curve; node (0, 0) averages the 20 saturation visits
     fod_nodes = II > 0
     assert np.all(d.count[II[fod_nodes], JJ[fod_nodes]] == 1)
@@ -108,7 +106,7 @@ def test_thesis_sweep_1khz_within_linear_interpolation_error():
     d = find_fod_curves(t, u, y)
     np.testing.assert_array_equal(d.levels, LEVELS)
     # bound of linear interpolation between samples: h^2/8 max|d2y/dbeta2|
-    h = np.max(np.abs(np.diff(u)))                      # 0.4 V per sample for alpha = 100 V
+    h = np.max(np.abs(np.diff(u)))  # 0.4 V per sample for alpha = 100 V
     db = 0.05
     curv = 0.0
     for a in LEVELS[1:]:
@@ -134,7 +132,7 @@ def test_noisy_recording_within_a_few_mv():
     t, u, y = thesis_sweep(f=1.0, fs=1000.0)
     un, yn = add_noise(u, y, rng)
     d = find_fod_curves(t, un, yn)
-    np.testing.assert_array_equal(d.levels, LEVELS)             # grid still inferred exactly
+    np.testing.assert_array_equal(d.levels, LEVELS)  # grid still inferred exactly
     assert len(d.curves) == 20 and all(c.used for c in d.curves)  # dither makes no curves
     err = d.y_grid[II, JJ] - expected_fod_grid()[II, JJ]
     assert np.all(np.isfinite(err))
@@ -148,7 +146,7 @@ def test_faster_sweeps_and_other_surfaces(f):
     t, u, y = thesis_sweep(surf, f=f, fs=1000.0)
     d = find_fod_curves(t, u, y, LEVELS)
     err = np.abs(d.y_grid[II, JJ] - expected_fod_grid(surf)[II, JJ])
-    assert err.max() < 1e-3                 # fewer samples per curve: interpolation only
+    assert err.max() < 1e-3  # fewer samples per curve: interpolation only
     np.testing.assert_allclose(np.diag(d.y_grid), surf(LEVELS, LEVELS), atol=1e-12)
 
 
@@ -175,10 +173,11 @@ def test_repeated_sweeps_are_averaged_with_spread():
     a, b = single1.y_grid[II, JJ], single2.y_grid[II, JJ]
     inner = fod & (JJ > 0)
     np.testing.assert_allclose(d.y_grid[II[inner], JJ[inner]], ((a + b) / 2)[inner], atol=1e-12)
-    np.testing.assert_allclose(d.spread[II[inner], JJ[inner]],
-                               (np.abs(a - b) / np.sqrt(2))[inner], atol=1e-12)
+    np.testing.assert_allclose(
+        d.spread[II[inner], JJ[inner]], (np.abs(a - b) / np.sqrt(2))[inner], atol=1e-12
+    )
     np.testing.assert_allclose(d.y_grid[II[fod], 0], SURF.y_min, atol=0.01)
-    assert 0.0005 < np.median(d.spread[II[fod], JJ[fod]]) < 0.005   # a few mV of noise
+    assert 0.0005 < np.median(d.spread[II[fod], JJ[fod]]) < 0.005  # a few mV of noise
     assert np.all(np.isnan(single1.spread[II[fod], JJ[fod]]))
     err = d.y_grid[II, JJ] - expected_fod_grid()[II, JJ]
     assert np.sqrt(np.mean(err**2)) < 0.003
@@ -219,7 +218,7 @@ def test_curve_not_starting_from_saturation_is_rejected():
     r0 = np.arange(0.0, 50.0 + step / 2, step)
     f0 = np.arange(50.0 - step, -100.0 - step / 2, -step)
     u0 = np.concatenate((r0, f0))
-    y0 = np.full(u0.size, 1.0)                          # garbage: must not reach the grid
+    y0 = np.full(u0.size, 1.0)  # garbage: must not reach the grid
     # ... then a proper FOD to 30 V
     t1, u1, y1 = exact_sweep(alphas=np.array([30.0]))
     u, y = np.concatenate((u0, u1)), np.concatenate((y0, y1))
@@ -231,14 +230,14 @@ def test_curve_not_starting_from_saturation_is_rejected():
     assert "did not start from negative saturation" in bad.reason
     assert bad.turning_value == 50.0 and bad.level is None
     assert good.used and good.level == 13
-    assert np.all(d.count[15] == 0)                     # no alpha = 50 V row
+    assert np.all(d.count[15] == 0)  # no alpha = 50 V row
     np.testing.assert_allclose(d.y_grid[13, :14], SURF(30.0, LEVELS[:14]), atol=1e-12)
     assert "did not start from negative saturation" in d.report()
 
 
 def test_non_monotone_rise_is_rejected_and_its_first_part_kept():
     step = 0.5
-    t0, u0, y0 = exact_sweep(alphas=np.array([-100.0]))   # a hold at saturation
+    t0, u0, y0 = exact_sweep(alphas=np.array([-100.0]))  # a hold at saturation
     # rise to 50, fall to -20 (a first-order curve that stops early), rise to 80, fall
     r1 = np.arange(-100.0 + step, 50.0 + step / 2, step)
     f1 = np.arange(50.0 - step, -20.0 - step / 2, -step)
@@ -246,7 +245,7 @@ def test_non_monotone_rise_is_rejected_and_its_first_part_kept():
     f2 = np.arange(80.0 - step, -100.0 - step / 2, -step)
     u = np.concatenate((u0, r1, f1, r2, f2))
     y1 = np.concatenate((SURF(r1, r1), SURF(50.0, f1)))
-    y = np.concatenate((y0, y1, np.full(r2.size + f2.size, 9.0)))   # second part: garbage
+    y = np.concatenate((y0, y1, np.full(r2.size + f2.size, 9.0)))  # second part: garbage
     d = find_fod_curves(np.arange(u.size) * 1e-3, u, y, LEVELS)
     assert len(d.curves) == 2
     first, second = d.curves
@@ -261,7 +260,7 @@ def test_non_monotone_rise_is_rejected_and_its_first_part_kept():
 def test_off_grid_turning_value_is_kept_as_raw_curve():
     step = 0.1
     t0, u0, y0 = exact_sweep(alphas=np.array([-100.0]))
-    rise = -100.0 + step * np.arange(1, 1433)            # ends at 43.2 V
+    rise = -100.0 + step * np.arange(1, 1433)  # ends at 43.2 V
     fall = rise[-1] - step * np.arange(1, 1433)
     u1, y1 = fod_leg(SURF, rise[-1], rise, fall)
     u, y = np.concatenate((u0, u1)), np.concatenate((y0, y1))
@@ -273,7 +272,7 @@ def test_off_grid_turning_value_is_kept_as_raw_curve():
     (raw,) = d.raw_curves
     alpha, beta, yy = raw
     assert alpha == pytest.approx(43.2)
-    np.testing.assert_array_equal(beta, u[c.turn: c.stop + 1])
+    np.testing.assert_array_equal(beta, u[c.turn : c.stop + 1])
     np.testing.assert_allclose(yy, SURF(alpha, beta), atol=1e-12)
     assert beta[0] == alpha and beta[-1] == pytest.approx(-100.0)
 
@@ -291,7 +290,7 @@ def test_off_grid_sweep_falls_back_to_equally_spaced_levels():
 def test_recording_ends_during_rise_is_too_short():
     t, u, y = exact_sweep(alphas=np.array([-100.0, 20.0]))
     u2 = np.concatenate((u, np.arange(-99.5, 60.0, 0.5)))
-    y2 = np.concatenate((y, SURF(u2[u.size:], u2[u.size:])))
+    y2 = np.concatenate((y, SURF(u2[u.size :], u2[u.size :])))
     d = find_fod_curves(np.arange(u2.size) * 1e-3, u2, y2, LEVELS)
     assert [c.used for c in d.curves] == [True, False]
     assert "too short" in d.curves[-1].reason
@@ -301,16 +300,21 @@ def test_dither_at_turning_point_and_backward_samples_on_branch():
     a = 60.0
     hold = np.full(3, -100.0)
     rise = np.arange(-99.5, a + 0.25, 0.5)
-    wiggle_top = np.array([a - 0.3, a - 0.1, a])        # reversals < reversal_tol (1 V)
-    fall1 = np.arange(a - 0.5, 50.0 - 0.25, -0.5)        # ends exactly at 50 V
-    wiggle = np.array([49.7, 50.2, 49.6])                # goes back above 50 V after crossing
+    wiggle_top = np.array([a - 0.3, a - 0.1, a])  # reversals < reversal_tol (1 V)
+    fall1 = np.arange(a - 0.5, 50.0 - 0.25, -0.5)  # ends exactly at 50 V
+    wiggle = np.array([49.7, 50.2, 49.6])  # goes back above 50 V after crossing
     fall2 = np.arange(49.5, -100.25, -0.5)
     u = np.concatenate((hold, rise, wiggle_top, fall1, wiggle, fall2))
-    y = np.concatenate((
-        SURF(hold, hold), SURF(rise, rise), SURF(a, wiggle_top), SURF(a, fall1),
-        SURF(a, wiggle) + 0.5,                           # backward samples: must be ignored
-        SURF(a, fall2),
-    ))
+    y = np.concatenate(
+        (
+            SURF(hold, hold),
+            SURF(rise, rise),
+            SURF(a, wiggle_top),
+            SURF(a, fall1),
+            SURF(a, wiggle) + 0.5,  # backward samples: must be ignored
+            SURF(a, fall2),
+        )
+    )
     d = find_fod_curves(np.arange(u.size) * 1e-3, u, y, LEVELS)
     assert len(d.curves) == 1
     (c,) = d.curves
@@ -331,8 +335,8 @@ def test_level_snapping_of_turning_value_and_branch_end():
     d = find_fod_curves(np.arange(u.size) * 1e-3, u, y, LEVELS, level_tol=0.5)
     (c,) = d.curves
     assert c.used and c.level == 14
-    assert d.y_grid[14, 14] == y[c.turn]                 # the turning-point sample
-    assert d.y_grid[14, 0] == y[-1]                      # snapped branch end
+    assert d.y_grid[14, 14] == y[c.turn]  # the turning-point sample
+    assert d.y_grid[14, 0] == y[-1]  # snapped branch end
     np.testing.assert_allclose(d.y_grid[14, 1:14], SURF(a, LEVELS[1:14]), atol=1e-5)
     d2 = find_fod_curves(np.arange(u.size) * 1e-3, u, y, LEVELS, level_tol=0.2)
     assert not d2.curves[0].used and "not on the grid" in d2.curves[0].reason
@@ -394,14 +398,14 @@ def test_forc_mirror_on_relay_grid():
     np.testing.assert_allclose(fod.y_grid[20, 1:], surf(100.0, LEVELS[1:]), atol=1e-9)
     assert np.isnan(fod.y_grid[20, 0])
     assert sum("did not start from negative saturation" in c.reason for c in fod.curves) == 20
-    assert "too short" in fod.curves[-1].reason          # the recording ends at +100 V
+    assert "too short" in fod.curves[-1].reason  # the recording ends at +100 V
 
 
 def test_forc_truncated_and_given_levels():
     surf = TABLE_3_1[4]
     grid = RelayGrid.from_everett(surf.everett, -100.0, 100.0, 60, surf.y_min)
     t, u, y = forc_recording(grid, np.array([-40.0, -80.0]))
-    k_cut = int(np.nonzero(u == 20.0)[0][-1])            # stop the last rise at 20 V
+    k_cut = int(np.nonzero(u == 20.0)[0][-1])  # stop the last rise at 20 V
     d = find_forc_curves(t[: k_cut + 1], u[: k_cut + 1], y[: k_cut + 1], LEVELS)
     c1, c2 = d.curves
     assert c1.used and c1.level == 6 and c2.used and c2.level == 2
@@ -462,6 +466,6 @@ def test_report_lists_every_curve():
     assert "2 used" in text and "0 rejected" in text
     assert len([ln for ln in text.splitlines() if "used: ok" in ln]) == 2
     alpha, beta, yb, cnt = d.nodes()
-    assert alpha.size == 12 + 20 + 1 - 1 + 1         # rows 11 (12 nodes), 19 (20), node (0,0)
+    assert alpha.size == 12 + 20 + 1 - 1 + 1  # rows 11 (12 nodes), 19 (20), node (0,0)
     np.testing.assert_allclose(yb, SURF(alpha, beta), atol=1e-12)
     assert np.all(alpha >= beta)

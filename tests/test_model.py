@@ -4,9 +4,8 @@ import copy
 import pickle
 
 import numpy as np
-import pytest
-
 import preisach
+import pytest
 from preisach import PreisachModel, State
 from preisach.reference import RelayGrid
 from preisach.surface import TABLE_3_1
@@ -35,8 +34,9 @@ def test_builtin_matches_table_3_1_saturation_outputs(ss15, f):
     assert m.y_max == pytest.approx(t.y_max, abs=1e-12)
     assert m.y_min == pytest.approx(t.y_min, abs=1e-12)
     # Driving the model: rise to u_max gives y(u,u) = y_max, then down to u_min gives y_min.
-    res = m.simulate(np.r_[np.linspace(-100, 100, 401), np.linspace(100, -100, 401)],
-                     m.negative_saturation())
+    res = m.simulate(
+        np.r_[np.linspace(-100, 100, 401), np.linspace(100, -100, 401)], m.negative_saturation()
+    )
     assert res.output[400] == pytest.approx(t.y_max, abs=1e-12)
     assert res.output[-1] == pytest.approx(t.y_min, abs=1e-12)
     assert m.readout(m.positive_saturation()) == pytest.approx(t.y_max, abs=1e-12)
@@ -112,7 +112,9 @@ def test_everett_table_shape_error_names_expected_shape():
 
 def test_from_everett_rejects_non_finite():
     with pytest.raises(ValueError, match="not finite"):
-        PreisachModel.from_everett(lambda a, b: np.where(a > 0.5, np.nan, a - b), np.linspace(0, 1, 5))
+        PreisachModel.from_everett(
+            lambda a, b: np.where(a > 0.5, np.nan, a - b), np.linspace(0, 1, 5)
+        )
 
 
 # ---------------------------------------------------------------- simulation correctness
@@ -165,28 +167,34 @@ def test_final_state_continues_the_run(ss15):
     assert m.readout(first.final_state) == first.output[-1]
 
 
-def decaying_oscillation(l, ratio, u_hat=100.0):
-    """Extrema of a sinusoid about l decaying from amplitude u_hat - |l| (after saturation)."""
+def decaying_oscillation(lv, ratio, u_hat=100.0):
+    """Extrema of a sinusoid about lv decaying from amplitude u_hat - |lv| (after saturation)."""
     n = int(np.log(1e-6) / np.log(ratio))
-    amps = (u_hat - abs(l)) * ratio ** np.arange(n)
-    start = [u_hat] if l > 0 else [-u_hat]
-    return start + list(l + amps * np.where(np.arange(n) % 2 == 0, -1.0, 1.0)) + [l]
+    amps = (u_hat - abs(lv)) * ratio ** np.arange(n)
+    start = [u_hat] if lv > 0 else [-u_hat]
+    return start + list(lv + amps * np.where(np.arange(n) % 2 == 0, -1.0, 1.0)) + [lv]
 
 
 def test_neutral_state_is_the_limit_of_a_decaying_oscillation(ss15):
     m = ss15[1]
-    probe_up = lambda l: np.r_[np.linspace(l, l + 20, 50), np.linspace(l + 20, l - 30, 80)]  # noqa: E731
-    for l in (-40.0, 0.0, 25.0, 70.0):
-        exact = m.neutral_state(l)
+
+    def probe_up(lv):
+        return np.r_[np.linspace(lv, lv + 20, 50), np.linspace(lv + 20, lv - 30, 80)]
+
+    for lv in (-40.0, 0.0, 25.0, 70.0):
+        exact = m.neutral_state(lv)
         errs = []
         for ratio in (0.8, 0.9, 0.97, 0.995):
-            approx = m.state_from_extrema(decaying_oscillation(l, ratio))
+            approx = m.state_from_extrema(decaying_oscillation(lv, ratio))
             errs.append(abs(m.readout(approx) - m.readout(exact)))
         # The staircase approaches the exact horizontal segment as the decay slows.
         assert all(e2 < 0.5 * e1 for e1, e2 in zip(errs, errs[1:])), errs
         assert errs[-1] < 3e-6
-        np.testing.assert_allclose(m.simulate(probe_up(l), approx).output,
-                                   m.simulate(probe_up(l), exact).output, atol=2e-6)
+        np.testing.assert_allclose(
+            m.simulate(probe_up(lv), approx).output,
+            m.simulate(probe_up(lv), exact).output,
+            atol=2e-6,
+        )
 
 
 def test_anhysteretic_is_neutral_at_zero(ss15):
@@ -291,9 +299,15 @@ def test_state_range_must_match_model(ss15):
 def test_batch_equals_sequential_and_thread_counts_agree(ss15):
     m = ss15[4]
     U = np.stack([random_walk(3000, s, -100, 100, 3.0) for s in range(7)])
-    states = [m.anhysteretic_state(), m.neutral_state(30.0), m.positive_saturation(),
-              m.negative_saturation(), m.neutral_state(-60.0), m.anhysteretic_state(),
-              m.state_from_extrema([50, -50])]
+    states = [
+        m.anhysteretic_state(),
+        m.neutral_state(30.0),
+        m.positive_saturation(),
+        m.negative_saturation(),
+        m.neutral_state(-60.0),
+        m.anhysteretic_state(),
+        m.state_from_extrema([50, -50]),
+    ]
     Y1, f1 = m.simulate_batch(U, states, threads=1)
     Y2, f2 = m.simulate_batch(U, states, threads=2)
     np.testing.assert_array_equal(Y1, Y2)
@@ -364,7 +378,11 @@ def test_state_json_round_trip(ss15):
     from preisach import state_from_dict, state_to_dict
 
     m = ss15[1]
-    for st in (m.neutral_state(-20.0), m.state_from_extrema([70, -50, 10]), m.negative_saturation()):
+    for st in (
+        m.neutral_state(-20.0),
+        m.state_from_extrema([70, -50, 10]),
+        m.negative_saturation(),
+    ):
         d = json.loads(json.dumps(state_to_dict(st)))
         assert state_from_dict(d) == st
     d = state_to_dict(m.neutral_state(10.0))

@@ -4,9 +4,8 @@ import json
 
 import numpy as np
 import pytest
-from scipy import signal
-
 from preisach.noise import NoiseSpec, uniform_filtered_noise
+from scipy import signal
 
 
 def _power_fraction_below(x: np.ndarray, fs: float, f_max: float) -> float:

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from preisach import PreisachModel
 
 MODEL = PreisachModel.builtin("ss15-4hz", levels=41)
@@ -31,7 +30,7 @@ def path(points, per_segment=7):
 @settings(max_examples=150, deadline=None)
 @given(initial, history, volts, volts, st.lists(st.floats(0.0, 1.0), max_size=10), history)
 def test_wiping_out(kind, hist, a, b, fractions, cont):
-    """An excursion inside [min(a,b), max(a,b)] between a and b leaves no trace once b is reached."""
+    """An excursion inside [min(a,b), max(a,b)] between a and b leaves no trace once b is back."""
     lo, hi = min(a, b), max(a, b)
     excursion = [min(max(lo + f * (hi - lo), lo), hi) for f in fractions]
     s0 = start_state(kind)
@@ -41,8 +40,11 @@ def test_wiping_out(kind, hist, a, b, fractions, cont):
     assert with_exc.output[-1] == pytest.approx(without.output[-1], abs=1e-12)
     if cont:
         c = path([b] + cont)
-        np.testing.assert_allclose(MODEL.simulate(c, with_exc.final_state).output,
-                                   MODEL.simulate(c, without.final_state).output, atol=1e-12)
+        np.testing.assert_allclose(
+            MODEL.simulate(c, with_exc.final_state).output,
+            MODEL.simulate(c, without.final_state).output,
+            atol=1e-12,
+        )
 
 
 @settings(max_examples=150, deadline=None)

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from preisach.errors import PreisachWarning, RecordingFormatError
 from preisach.recording import Recording, RecordingWriter
 
@@ -153,7 +152,7 @@ def test_metadata_parsing(tmp_path: Path) -> None:
         "# gain: -2.5e-3\n"
         "# offset: +4\n"
         "# note: ratio 3:1\n"
-        "# serial: \"0042\"\n"
+        '# serial: "0042"\n'
         "# missing: nan\n"
         "\n"
         "t,u,y\n"
@@ -183,10 +182,7 @@ def test_metadata_parsing(tmp_path: Path) -> None:
 def test_extra_columns_kept_in_file_order_any_column_order(tmp_path: Path) -> None:
     path = write(
         tmp_path / "x.csv",
-        "y, temp ,t,u,u_cmd\n"
-        "10,25.5,0.0,1,-1\n"
-        "20,25.25,0.1,2,-2\n"
-        "30,25.0,0.2,3,-3\n",
+        "y, temp ,t,u,u_cmd\n10,25.5,0.0,1,-1\n20,25.25,0.1,2,-2\n30,25.0,0.2,3,-3\n",
     )
     rec = Recording.load(path)
     np.testing.assert_array_equal(rec.t, [0.0, 0.1, 0.2])

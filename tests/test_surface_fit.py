@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from preisach.identify.surface_fit import SurfaceFitResult, fit_sqrt_surface, format_table
 from preisach.surface import TABLE_3_1, SqrtSurface
 
@@ -107,8 +106,7 @@ def test_thesis_procedure_without_refinement(freq):
 
 
 def test_non_uniform_asymmetric_levels():
-    truth = SqrtSurface(5e-06, 4e-03, -2e-03, -3e-01, -1.6e02, 2.9, -1.1, u_max=120.0,
-                        u_min=-40.0)
+    truth = SqrtSurface(5e-06, 4e-03, -2e-03, -3e-01, -1.6e02, 2.9, -1.1, u_max=120.0, u_min=-40.0)
     levels = np.array([-40, -30, -25, -10, 0, 5, 20, 30, 45, 60, 70, 85, 100, 110, 120.0])
     res = fit_sqrt_surface(levels, fod_grid(truth, levels))
     assert (res.surface.u_min, res.surface.u_max) == (-40.0, 120.0)
@@ -245,7 +243,17 @@ def test_table(clean_fits):
     text = clean_fits[1].table()
     lines = text.splitlines()
     assert [ln.split()[0] for ln in lines] == [
-        "f", "xbar4", "xbar5", "x7", "x8", "x9", "umax", "umin", "ymax", "ymin", "error",
+        "f",
+        "xbar4",
+        "xbar5",
+        "x7",
+        "x8",
+        "x9",
+        "umax",
+        "umin",
+        "ymax",
+        "ymin",
+        "error",
     ]
     assert "8.81e-06" in text and "-1.94e+02" in text and "-3.63" in text
     # format_table reproduces Table 3.1 from the stored surfaces

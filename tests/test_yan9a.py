@@ -8,21 +8,12 @@ sample after the input (``delay=1``).  The first 60 % identify, the last 40 % ar
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from _paths import YAN9A as DATA
 from preisach import Recording
 from preisach.identify import identify_lsq
 from preisach.verify import congruency_metric, verify, wiping_out_metric
-
-DATA = (
-    Path(__file__).resolve().parents[1].parent
-    / "shared"
-    / "data"
-    / "yan9a-piezo"
-    / "Model_Vi_Do.dat"
-)
 
 pytestmark = pytest.mark.skipif(not DATA.exists(), reason=f"{DATA} is not available")
 

@@ -7,7 +7,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <preisach.hpp>
+#include <preisach/preisach.hpp>
 
 namespace py = pybind11;
 

@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include <preisach.hpp>
+#include <preisach/preisach.hpp>
 
 namespace ptest {
 

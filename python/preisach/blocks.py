@@ -122,8 +122,9 @@ def make_block(spec: Mapping[str, Any], dt: float) -> Block:
             raise TypeError(f"block {kind!r}: parameter {name} must be a number, got {value!r}")
         if name in _INT_PARAMS:
             if int(value) != value or value < 0:
-                raise ValueError(f"block {kind!r}: parameter {name} must be a whole number >= 0, "
-                                 f"got {value!r}")
+                raise ValueError(
+                    f"block {kind!r}: parameter {name} must be a whole number >= 0, got {value!r}"
+                )
             value = int(value)
         args[name] = value
     return cls(dt, **args)

@@ -121,8 +121,16 @@ def channel(
 
     """
     cal = calibration if calibration is not None else LinearCalibration(1.0, 0.0)
-    return Channel(name, int(number), (float(range[0]), float(range[1])), cal.gain, cal.offset,
-                   unit, int(subdevice), int(aref))
+    return Channel(
+        name,
+        int(number),
+        (float(range[0]), float(range[1])),
+        cal.gain,
+        cal.offset,
+        unit,
+        int(subdevice),
+        int(aref),
+    )
 
 
 def ss15_output_channel() -> Channel:
@@ -147,24 +155,27 @@ def _as_blocks(blocks: Iterable[Block | Mapping[str, Any]], dt: float) -> list[B
     for i, b in enumerate(blocks):
         if isinstance(b, Block):
             if not math.isclose(b.dt, dt, rel_tol=1e-12):
-                raise ValueError(f"block {i} ({b.kind}) has dt = {b.dt} s but the rig samples "
-                                 "every "
-                                 f"{dt} s")
+                raise ValueError(
+                    f"block {i} ({b.kind}) has dt = {b.dt} s but the rig samples every {dt} s"
+                )
             out.append(b)
         elif isinstance(b, Mapping):
             out.append(make_block(b, dt))
         else:
-            raise TypeError(f"block {i}: expected a preisach block or a mapping, got "
-                            f"{type(b).__name__}")
+            raise TypeError(
+                f"block {i}: expected a preisach block or a mapping, got {type(b).__name__}"
+            )
     return out
 
 
 def _start_state(model: PreisachModel, state: State | str | None) -> State:
     if state is None or isinstance(state, str):
         name = "anhysteretic" if state is None else state
-        makers = {"anhysteretic": model.anhysteretic_state,
-                  "negative_saturation": model.negative_saturation,
-                  "positive_saturation": model.positive_saturation}
+        makers = {
+            "anhysteretic": model.anhysteretic_state,
+            "negative_saturation": model.negative_saturation,
+            "positive_saturation": model.positive_saturation,
+        }
         if name not in makers:
             raise ValueError(f"state: expected a State or one of {sorted(makers)}, got {name!r}")
         return makers[name]()
@@ -231,21 +242,31 @@ def virtual_ss15(
 
     """
     if isinstance(model, str):
-        model = (PreisachModel.builtin(model) if model.lower().startswith("ss15-")
-                 else PreisachModel.load(model))
+        model = (
+            PreisachModel.builtin(model)
+            if model.lower().startswith("ss15-")
+            else PreisachModel.load(model)
+        )
     if not isinstance(model, PreisachModel):
         raise TypeError(f"model: expected a PreisachModel or a name, got {type(model).__name__}")
     dt = float(sample_time)
-    chain = [*_as_blocks(input_blocks, dt),
-             _core.PreisachStage(dt, model.table, _start_state(model, state), float(moving_gain)),
-             *_as_blocks(output_blocks, dt)]
+    chain = [
+        *_as_blocks(input_blocks, dt),
+        _core.PreisachStage(dt, model.table, _start_state(model, state), float(moving_gain)),
+        *_as_blocks(output_blocks, dt),
+    ]
     return _core.VirtualRig(
         BlockChain(chain),
         ss15_output_channel() if output is None else output,
         ss15_input_channel() if input is None else input,
-        sample_time=dt, dac_bits=int(dac_bits), amp_gain=amplifier.gain,
-        amp_offset=amplifier.offset, amp_limit=float(amp_limit), adc_bits=int(adc_bits),
-        adc_noise=float(adc_noise), seed=int(seed),
+        sample_time=dt,
+        dac_bits=int(dac_bits),
+        amp_gain=amplifier.gain,
+        amp_offset=amplifier.offset,
+        amp_limit=float(amp_limit),
+        adc_bits=int(adc_bits),
+        adc_noise=float(adc_noise),
+        seed=int(seed),
     )
 
 
@@ -338,10 +359,23 @@ class TrialResult:
 
     @classmethod
     def _from_core(cls, r: _core.DaqTrialResult) -> TrialResult:
-        return cls(r.path, r.end_status, r.reason, int(r.planned), int(r.samples),
-                   int(r.ramp_samples), int(r.dropped), int(r.missed_deadlines),
-                   [int(i) for i in r.missed], float(r.max_lateness), float(r.mean_lateness),
-                   float(r.elapsed), float(r.final_output), bool(r.realtime), r.priority)
+        return cls(
+            r.path,
+            r.end_status,
+            r.reason,
+            int(r.planned),
+            int(r.samples),
+            int(r.ramp_samples),
+            int(r.dropped),
+            int(r.missed_deadlines),
+            [int(i) for i in r.missed],
+            float(r.max_lateness),
+            float(r.mean_lateness),
+            float(r.elapsed),
+            float(r.final_output),
+            bool(r.realtime),
+            r.priority,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dictionary."""
@@ -444,11 +478,23 @@ def run_trial(
     def work() -> None:
         try:
             box["result"] = runner.run(
-                device, controller, os.fspath(path), float(sample_time), n_samples=int(n_samples),
-                realtime=bool(realtime), output=int(output), input=int(input),
-                overwrite=bool(overwrite), fsync=bool(fsync), metadata=meta, spin=float(spin),
-                t0=float(t0), priority=int(priority), ramp_at_end=bool(ramp_at_end),
-                safety=SafetyLimits() if safety is None else safety)
+                device,
+                controller,
+                os.fspath(path),
+                float(sample_time),
+                n_samples=int(n_samples),
+                realtime=bool(realtime),
+                output=int(output),
+                input=int(input),
+                overwrite=bool(overwrite),
+                fsync=bool(fsync),
+                metadata=meta,
+                spin=float(spin),
+                t0=float(t0),
+                priority=int(priority),
+                ramp_at_end=bool(ramp_at_end),
+                safety=SafetyLimits() if safety is None else safety,
+            )
         except BaseException as exc:  # noqa: BLE001 - handed to the calling thread
             box["error"] = exc
         finally:
@@ -478,10 +524,12 @@ def run_trial(
     if progress is not None:
         progress(result.samples, result.planned)
     if interrupted:
-        raise TrialInterrupted(f"trial interrupted after {result.samples} samples; "
-                               f"{result.path} is complete up to there", result)
+        raise TrialInterrupted(
+            f"trial interrupted after {result.samples} samples; "
+            f"{result.path} is complete up to there",
+            result,
+        )
     return result
-
 
 
 class DevicePlant:
@@ -516,10 +564,17 @@ class DevicePlant:
 
     """
 
-    def __init__(self, device: Device, *, sample_time: float | None = None,
-                 input_range: tuple[float, float] = (-100.0, 100.0),
-                 model: PreisachModel | None = None, record_dir: PathLike | None = None,
-                 realtime: bool = False, safety: SafetyLimits | None = None) -> None:
+    def __init__(
+        self,
+        device: Device,
+        *,
+        sample_time: float | None = None,
+        input_range: tuple[float, float] = (-100.0, 100.0),
+        model: PreisachModel | None = None,
+        record_dir: PathLike | None = None,
+        realtime: bool = False,
+        safety: SafetyLimits | None = None,
+    ) -> None:
         if sample_time is None:
             if not isinstance(device, _core.VirtualRig):
                 raise ValueError("sample_time: required for a device other than the virtual rig")
@@ -531,8 +586,9 @@ class DevicePlant:
             self.model = model
         self.realtime = bool(realtime)
         self.safety = safety
-        self._tmp = (tempfile.TemporaryDirectory(prefix="preisach-plant-")
-                     if record_dir is None else None)
+        self._tmp = (
+            tempfile.TemporaryDirectory(prefix="preisach-plant-") if record_dir is None else None
+        )
         self.record_dir = os.fspath(record_dir) if record_dir is not None else self._tmp.name  # type: ignore[union-attr]
         os.makedirs(self.record_dir, exist_ok=True)
         self._count = itertools.count(1)
@@ -569,9 +625,16 @@ class DevicePlant:
 
     def _run(self, controller: Any, n: int, kind: str) -> Recording:
         path = os.path.join(self.record_dir, f"run_{next(self._count):04d}_{kind}.csv")
-        res = run_trial(self.device, controller, path, sample_time=self._ts, n_samples=n + 1,
-                        realtime=self.realtime, safety=self.safety,
-                        metadata={"experiment": f"plant_{kind}"})
+        res = run_trial(
+            self.device,
+            controller,
+            path,
+            sample_time=self._ts,
+            n_samples=n + 1,
+            realtime=self.realtime,
+            safety=self.safety,
+            metadata={"experiment": f"plant_{kind}"},
+        )
         self.results.append(res)
         if not res.complete:
             raise RuntimeError(f"{path}: the run ended early: {res.end_status}")
@@ -585,8 +648,9 @@ class DevicePlant:
         rec = self._run(WaveformController(np.append(uu, uu[-1])), uu.size, "open")
         return rec.y[1:]
 
-    def run_closed_loop(self, u_open: ArrayLike, controller: Any) -> tuple[
-            NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    def run_closed_loop(
+        self, u_open: ArrayLike, controller: Any
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Run the PI loop of a :class:`~preisach.experiments.PIConfig` over ``u_open`` (V).
 
         Returns the applied input (V), the output (V) and the controller output (controller
@@ -596,13 +660,22 @@ class DevicePlant:
         if uu.ndim != 1 or uu.size == 0:
             raise ValueError(f"u_open: expected a non-empty 1-D array, got shape {uu.shape}")
         if not math.isclose(controller.sample_time, self._ts, rel_tol=1e-9):
-            raise ValueError(f"controller.sample_time = {controller.sample_time:g} s differs from "
-                             f"the plant's sample_time {self._ts:g} s")
+            raise ValueError(
+                f"controller.sample_time = {controller.sample_time:g} s differs from "
+                f"the plant's sample_time {self._ts:g} s"
+            )
         g = float(controller.input_gain)
         ff = np.append(uu, uu[-1])
-        pi = PIController(controller.kp * g, controller.ki * g, controller.setpoint, self._ts, ff,
-                          enable_at=int(controller.enable_at) + 1, average=int(controller.average))
+        pi = PIController(
+            controller.kp * g,
+            controller.ki * g,
+            controller.setpoint,
+            self._ts,
+            ff,
+            enable_at=int(controller.enable_at) + 1,
+            average=int(controller.average),
+        )
         rec = self._run(pi, uu.size, "closed")
         n = uu.size
-        uc = (rec.columns["u_cmd"][1:n + 1] - ff[1:n + 1]) / g if g else np.zeros(n)
-        return rec.u[:n], rec.y[1:n + 1], uc
+        uc = (rec.columns["u_cmd"][1 : n + 1] - ff[1 : n + 1]) / g if g else np.zeros(n)
+        return rec.u[:n], rec.y[1 : n + 1], uc

@@ -6,8 +6,15 @@ that do not know this package.
 
 from __future__ import annotations
 
-__all__ = ["PreisachError", "RecordingFormatError", "PreisachWarning", "ConvergenceError",
-           "DeviceError", "TrialFileError", "TrialInterrupted"]
+__all__ = [
+    "PreisachError",
+    "RecordingFormatError",
+    "PreisachWarning",
+    "ConvergenceError",
+    "DeviceError",
+    "TrialFileError",
+    "TrialInterrupted",
+]
 
 
 class PreisachError(Exception):

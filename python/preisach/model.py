@@ -19,7 +19,7 @@ import json
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -60,9 +60,12 @@ def state_to_dict(state: State) -> dict[str, Any]:
     """
     u_min, u_max, u, b0, v, ad = state.to_tuple()
     return {
-        "u_min": float(u_min), "u_max": float(u_max), "input": float(u),
-        "pieces": [[float(a), float(b), "antidiagonal" if c else "constant"]
-                   for a, b, c in zip(b0, v, ad)],
+        "u_min": float(u_min),
+        "u_max": float(u_max),
+        "input": float(u),
+        "pieces": [
+            [float(a), float(b), "antidiagonal" if c else "constant"] for a, b, c in zip(b0, v, ad)
+        ],
     }
 
 
@@ -74,10 +77,14 @@ def state_from_dict(data: dict[str, Any]) -> State:
         bad = [k for k in kinds if k not in ("constant", "antidiagonal")]
         if bad:
             raise ValueError(f"state: unknown piece kind {bad[0]!r}")
-        return State(float(data["u_min"]), float(data["u_max"]), float(data["input"]),
-                     np.array([p[0] for p in pieces], float),
-                     np.array([p[1] for p in pieces], float),
-                     np.array([k == "antidiagonal" for k in kinds], bool))
+        return State(
+            float(data["u_min"]),
+            float(data["u_max"]),
+            float(data["input"]),
+            np.array([p[0] for p in pieces], float),
+            np.array([p[1] for p in pieces], float),
+            np.array([k == "antidiagonal" for k in kinds], bool),
+        )
     except (KeyError, IndexError, TypeError) as exc:
         raise ValueError(f"state: malformed description ({exc!r})") from exc
 
@@ -139,8 +146,8 @@ class SimulationResult:
     def time(self) -> NDArray[np.float64]:
         """Sample times (s)."""
         if self._time is None:
-            self._time = np.arange(self.output.size) * self.sample_time
-        return self._time
+            self._time = np.arange(self.output.size, dtype=np.float64) * float(self.sample_time)
+        return cast(NDArray[np.float64], self._time)
 
     def __iter__(self) -> Iterator[NDArray[np.float64]]:
         yield self.time
@@ -328,8 +335,11 @@ class PreisachModel:
         """Tabulate a square-root FOD surface (Eq 3.2) on ``levels`` (count or array, V)."""
         kwargs.setdefault("metadata", {"source": "sqrt_surface", "surface": surface.to_dict()})
         return cls.from_everett(
-            surface.everett, levels, y_min=surface.y_min,
-            u_range=(surface.u_min, surface.u_max), **kwargs,
+            surface.everett,
+            levels,
+            y_min=surface.y_min,
+            u_range=(surface.u_min, surface.u_max),
+            **kwargs,
         )
 
     @classmethod
@@ -610,12 +620,20 @@ class PreisachModel:
                 )
             table = _core.EverettTable(data["levels"], data["everett"], float(data["y_min"]))
             meta = json.loads(str(data["info"]))
-        return cls(table, name=meta.get("name", ""), metadata=meta.get("metadata", {}),
-                   out_of_range=meta.get("out_of_range", "clamp"))
+        return cls(
+            table,
+            name=meta.get("name", ""),
+            metadata=meta.get("metadata", {}),
+            out_of_range=meta.get("out_of_range", "clamp"),
+        )
 
     def __getstate__(self) -> dict[str, Any]:
-        return {"table": self._table, "name": self.name, "metadata": self.metadata,
-                "out_of_range": self.out_of_range}
+        return {
+            "table": self._table,
+            "name": self.name,
+            "metadata": self.metadata,
+            "out_of_range": self.out_of_range,
+        }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self._table = state["table"]

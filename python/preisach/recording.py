@@ -66,7 +66,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Union
+from typing import IO, Any, Union, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -186,7 +186,7 @@ def _first_non_increasing(t: NDArray[np.float64]) -> int | None:
     return int(bad[0]) + 1 if bad.size else None
 
 
-def _atomic_write(path: Path, write: Callable[[IO[Any]], None], binary: bool) -> None:
+def _atomic_write(path: Path, write: Callable[[IO[Any]], object], binary: bool) -> None:
     """Write through a temporary file in the same directory, then rename over ``path``."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
@@ -291,11 +291,11 @@ class Recording:
                 raise ValueError(
                     f"column {name!r} has the non-finite value {float(arr[i])!r} at index {i}"
                 )
-        i = _first_non_increasing(self.t)
-        if i is not None:
+        k = _first_non_increasing(self.t)
+        if k is not None:
             raise ValueError(
-                f"t must be strictly increasing: t[{i}] = {float(self.t[i])!r} s is not "
-                f"greater than t[{i - 1}] = {float(self.t[i - 1])!r} s"
+                f"t must be strictly increasing: t[{k}] = {float(self.t[k])!r} s is not "
+                f"greater than t[{k - 1}] = {float(self.t[k - 1])!r} s"
             )
 
     # ---- construction ----------------------------------------------------------------
@@ -373,7 +373,14 @@ class Recording:
                 raise ValueError(f"sample_time must be a positive finite number (s), got {st!r}")
             n = np.asarray(u).shape[0] if np.ndim(u) else 0
             t = np.arange(n, dtype=np.float64) * st
-        return cls(t=t, u=u, y=y, columns=dict(extra), metadata=meta)
+        # the dataclass checks and converts the columns (errors name the column)
+        return cls(
+            t=cast(Any, t),
+            u=cast(Any, u),
+            y=cast(Any, y),
+            columns=cast(Any, dict(extra)),
+            metadata=meta,
+        )
 
     # ---- I/O -------------------------------------------------------------------------
 
@@ -554,9 +561,7 @@ class Recording:
             return NotImplemented
         if self.column_names != other.column_names or self.metadata != other.metadata:
             return False
-        return all(
-            np.array_equal(a, b) for (_, a), (_, b) in zip(self._items(), other._items())
-        )
+        return all(np.array_equal(a, b) for (_, a), (_, b) in zip(self._items(), other._items()))
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -586,8 +591,7 @@ def _parse_comment(
     m = _COMMENT_RE.match(line.strip())
     if m is None:
         raise RecordingFormatError(
-            f"{name} line {lineno}: comment line {line.strip()!r} is not of the form "
-            "'# key: value'"
+            f"{name} line {lineno}: comment line {line.strip()!r} is not of the form '# key: value'"
         )
     key, value = m.group(1), m.group(2)
     if not _valid_name(key):

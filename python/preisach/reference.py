@@ -46,8 +46,12 @@ class RelayGrid:
 
     @classmethod
     def from_everett(
-        cls, everett: Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]],
-        u_min: float, u_max: float, n: int, y_min: float,
+        cls,
+        everett: Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]],
+        u_min: float,
+        u_max: float,
+        n: int,
+        y_min: float,
     ) -> RelayGrid:
         """Relays at the centres of an ``n x n`` grid, weighted by the Everett function.
 
@@ -56,7 +60,7 @@ class RelayGrid:
         holds the mass of its triangle, ``E(a1, a0)``, at its centroid.
         """
         g = np.linspace(u_min, u_max, n + 1)
-        i, j = np.tril_indices(n)          # i: alpha cell, j: beta cell, j <= i
+        i, j = np.tril_indices(n)  # i: alpha cell, j: beta cell, j <= i
         a0, a1, b0, b1 = g[i], g[i + 1], g[j], g[j + 1]
         off = i > j
         w = np.where(

@@ -95,9 +95,9 @@ class SqrtSurface:
         """FOD output ``y(alpha, beta)`` in volts (Eq 3.2), for ``alpha >= beta``."""
         a, b = np.broadcast_arrays(np.asarray(alpha, float), np.asarray(beta, float))
         f3 = self._f3(a)
-        return self._scale() * self._f2(a) * (
-            np.sqrt(b - f3) - np.sqrt(self.u_min - f3)
-        ) + self.y_min
+        return (
+            self._scale() * self._f2(a) * (np.sqrt(b - f3) - np.sqrt(self.u_min - f3)) + self.y_min
+        )
 
     def everett(self, alpha: ArrayLike, beta: ArrayLike) -> NDArray[np.float64]:
         """Everett function ``E = (y(alpha, alpha) - y(alpha, beta)) / 2`` in volts."""
@@ -111,9 +111,7 @@ class SqrtSurface:
         d = b - f3
         df2 = 2.0 * self.xbar4 * a + self.xbar5
         df3 = 2.0 * self.x7 * a + self.x8
-        mixed = self._scale() * (
-            df2 / (2.0 * np.sqrt(d)) + self._f2(a) * df3 / (4.0 * d ** 1.5)
-        )
+        mixed = self._scale() * (df2 / (2.0 * np.sqrt(d)) + self._f2(a) * df3 / (4.0 * d**1.5))
         return 0.5 * mixed
 
     def kappa(self, beta: ArrayLike) -> NDArray[np.float64]:
@@ -128,10 +126,37 @@ class SqrtSurface:
 
 #: Table 3.1 of the thesis: the SS15 FOD surfaces identified at 1, 2 and 4 Hz.
 TABLE_3_1: dict[int, SqrtSurface] = {
-    1: SqrtSurface(8.81e-06, 3.47e-03, -4.16e-03, -4.83e-01, -1.94e02, 3.49, -3.63,
-                   fit_error=0.38, frequency=1.0),
-    2: SqrtSurface(2.24e-06, 3.99e-03, -1.73e-03, -3.19e-01, -1.55e02, 3.49, -3.62,
-                   fit_error=0.57, frequency=2.0),
-    4: SqrtSurface(-5.28e-06, 4.39e-03, -3.41e-04, -1.33e-01, -1.24e02, 3.48, -3.60,
-                   fit_error=1.10, frequency=4.0),
+    1: SqrtSurface(
+        8.81e-06,
+        3.47e-03,
+        -4.16e-03,
+        -4.83e-01,
+        -1.94e02,
+        3.49,
+        -3.63,
+        fit_error=0.38,
+        frequency=1.0,
+    ),
+    2: SqrtSurface(
+        2.24e-06,
+        3.99e-03,
+        -1.73e-03,
+        -3.19e-01,
+        -1.55e02,
+        3.49,
+        -3.62,
+        fit_error=0.57,
+        frequency=2.0,
+    ),
+    4: SqrtSurface(
+        -5.28e-06,
+        4.39e-03,
+        -3.41e-04,
+        -1.33e-01,
+        -1.24e02,
+        3.48,
+        -3.60,
+        fit_error=1.10,
+        frequency=4.0,
+    ),
 }

@@ -155,23 +155,42 @@ _NUM = (int, float)
 # Schema: key -> (type(s), default); "REQUIRED" marks required keys.
 REQUIRED = object()
 _TRIAL_KEYS: dict[str, tuple[Any, Any]] = {
-    "name": (str, None), "description": (str, ""), "sample_time": (_NUM, 1e-3),
+    "name": (str, None),
+    "description": (str, ""),
+    "sample_time": (_NUM, 1e-3),
 }
 _DEVICE_KEYS: dict[str, tuple[Any, Any]] = {
-    "kind": (str, "sim"), "file": (str, None), "calibration_file": (str, ""),
-    "model": (str, "ss15-1hz"), "state": (str, "anhysteretic"), "seed": (int, 0),
-    "adc_noise": (_NUM, 0.5e-3), "adc_bits": (int, 14), "dac_bits": (int, 0),
-    "moving_gain": (_NUM, 0.0), "input_blocks": (list, []), "output_blocks": (list, []),
+    "kind": (str, "sim"),
+    "file": (str, None),
+    "calibration_file": (str, ""),
+    "model": (str, "ss15-1hz"),
+    "state": (str, "anhysteretic"),
+    "seed": (int, 0),
+    "adc_noise": (_NUM, 0.5e-3),
+    "adc_bits": (int, 14),
+    "dac_bits": (int, 0),
+    "moving_gain": (_NUM, 0.0),
+    "input_blocks": (list, []),
+    "output_blocks": (list, []),
 }
 _CHANNEL_KEYS: dict[str, tuple[Any, Any]] = {
-    "name": (str, REQUIRED), "channel": (int, REQUIRED), "range": (list, REQUIRED),
-    "calibration": (str, None), "gain": (_NUM, None), "offset": (_NUM, None),
-    "unit": (str, "V"), "subdevice": (int, -1), "aref": (int, 0),
+    "name": (str, REQUIRED),
+    "channel": (int, REQUIRED),
+    "range": (list, REQUIRED),
+    "calibration": (str, None),
+    "gain": (_NUM, None),
+    "offset": (_NUM, None),
+    "unit": (str, "V"),
+    "subdevice": (int, -1),
+    "aref": (int, 0),
 }
 _SAFETY_KEYS: dict[str, tuple[Any, Any]] = {
-    "u_limits": (list, [-AMPLIFIER_LIMIT, AMPLIFIER_LIMIT]), "slew_rate": (_NUM, 1e4),
-    "ramp_rate": (_NUM, 500.0), "approach_rate": (_NUM, 200.0),
-    "y_limits": (list, [-math.inf, math.inf]), "max_missed_deadlines": (int, -1),
+    "u_limits": (list, [-AMPLIFIER_LIMIT, AMPLIFIER_LIMIT]),
+    "slew_rate": (_NUM, 1e4),
+    "ramp_rate": (_NUM, 500.0),
+    "approach_rate": (_NUM, 200.0),
+    "y_limits": (list, [-math.inf, math.inf]),
+    "max_missed_deadlines": (int, -1),
     "max_consecutive_missed": (int, 20),
 }
 _STEP_COMMON: dict[str, tuple[Any, Any]] = {"kind": (str, REQUIRED), "name": (str, None)}
@@ -179,25 +198,68 @@ _SHAPE = (str, "cosine")
 #: Parameters of every step kind with their defaults.
 STEP_KINDS: dict[str, dict[str, tuple[Any, Any]]] = {
     "initialise": {"duration": (_NUM, 12.0), "frequency": (_NUM, 1.0), "amplitude": (_NUM, 100.0)},
-    "fod_sweep": {"frequency": (_NUM, 1.0), "levels": (int, 21), "u_min": (_NUM, -100.0),
-                  "u_max": (_NUM, 100.0), "shape": _SHAPE, "order": (str, "descending")},
-    "wiping_out": {"frequency": (_NUM, 1.0), "peaks": (list, [100.0, 72.0, 44.0]),
-                   "trough": (_NUM, -40.0), "u_min": (_NUM, -100.0), "shape": _SHAPE},
-    "cml": {"frequency": (_NUM, 1.0), "loop": (list, [0.0, 50.0]), "peak": (_NUM, 100.0),
-            "u_min": (_NUM, -100.0), "shape": _SHAPE},
-    "drive": {"target": (str, REQUIRED), "y_d": (_NUM, None), "offset": (_NUM, None),
-              "frequency": (_NUM, 1.0), "cycles": (_NUM, 10.0), "u_hat": (_NUM, None),
-              "hold": (_NUM, 2.0), "model": (str, None), "tolerance": (_NUM, 0.03)},
-    "noise": {"duration": (_NUM, 8.0), "amplitude": (_NUM, 0.5), "gain": (_NUM, 1.0),
-              "input_gain": (_NUM, SS15_INPUT_GAIN), "cutoff": (_NUM, 15.0),
-              "hold_time": (_NUM, 0.015), "seed": (int, 0), "hold_before": (_NUM, 2.0),
-              "hold_after": (_NUM, 0.0), "offset": (_NUM, None)},
-    "pi": {"setpoint": (_NUM, 1.0), "kp": (_NUM, 1.5), "ki": (_NUM, 30.0),
-           "input_gain": (_NUM, SS15_INPUT_GAIN), "duration": (_NUM, 12.0),
-           "enable_after": (_NUM, 1.0), "average": (_NUM, 0.025), "noise_gain": (_NUM, 0.0),
-           "noise_from": (_NUM, 2.0), "noise_to": (_NUM, 10.0), "amplitude": (_NUM, 0.5),
-           "cutoff": (_NUM, 15.0), "hold_time": (_NUM, 0.015), "seed": (int, 0),
-           "offset": (_NUM, None)},
+    "fod_sweep": {
+        "frequency": (_NUM, 1.0),
+        "levels": (int, 21),
+        "u_min": (_NUM, -100.0),
+        "u_max": (_NUM, 100.0),
+        "shape": _SHAPE,
+        "order": (str, "descending"),
+    },
+    "wiping_out": {
+        "frequency": (_NUM, 1.0),
+        "peaks": (list, [100.0, 72.0, 44.0]),
+        "trough": (_NUM, -40.0),
+        "u_min": (_NUM, -100.0),
+        "shape": _SHAPE,
+    },
+    "cml": {
+        "frequency": (_NUM, 1.0),
+        "loop": (list, [0.0, 50.0]),
+        "peak": (_NUM, 100.0),
+        "u_min": (_NUM, -100.0),
+        "shape": _SHAPE,
+    },
+    "drive": {
+        "target": (str, REQUIRED),
+        "y_d": (_NUM, None),
+        "offset": (_NUM, None),
+        "frequency": (_NUM, 1.0),
+        "cycles": (_NUM, 10.0),
+        "u_hat": (_NUM, None),
+        "hold": (_NUM, 2.0),
+        "model": (str, None),
+        "tolerance": (_NUM, 0.03),
+    },
+    "noise": {
+        "duration": (_NUM, 8.0),
+        "amplitude": (_NUM, 0.5),
+        "gain": (_NUM, 1.0),
+        "input_gain": (_NUM, SS15_INPUT_GAIN),
+        "cutoff": (_NUM, 15.0),
+        "hold_time": (_NUM, 0.015),
+        "seed": (int, 0),
+        "hold_before": (_NUM, 2.0),
+        "hold_after": (_NUM, 0.0),
+        "offset": (_NUM, None),
+    },
+    "pi": {
+        "setpoint": (_NUM, 1.0),
+        "kp": (_NUM, 1.5),
+        "ki": (_NUM, 30.0),
+        "input_gain": (_NUM, SS15_INPUT_GAIN),
+        "duration": (_NUM, 12.0),
+        "enable_after": (_NUM, 1.0),
+        "average": (_NUM, 0.025),
+        "noise_gain": (_NUM, 0.0),
+        "noise_from": (_NUM, 2.0),
+        "noise_to": (_NUM, 10.0),
+        "amplitude": (_NUM, 0.5),
+        "cutoff": (_NUM, 15.0),
+        "hold_time": (_NUM, 0.015),
+        "seed": (int, 0),
+        "offset": (_NUM, None),
+    },
     "hold": {"duration": (_NUM, REQUIRED), "value": (_NUM, None)},
 }
 _TARGETS = {"psi_n": "n", "psi_a": "a", "psi_d": "d"}
@@ -234,14 +296,18 @@ def _type_name(types: Any) -> str:
     return {str: "a string", int: "an integer", list: "an array", dict: "a table"}[types]
 
 
-def _section(data: Mapping[str, Any], where: str, schema: Mapping[str, tuple[Any, Any]],
-             errors: _Errors) -> dict[str, Any]:
+def _section(
+    data: Mapping[str, Any], where: str, schema: Mapping[str, tuple[Any, Any]], errors: _Errors
+) -> dict[str, Any]:
     """Check keys and types of one table; returns the values with defaults filled in."""
     out: dict[str, Any] = {}
     for key in data:
         if key not in schema:
-            errors.add(where, f"unknown key {key!r}{_suggest(key, list(schema))}; "
-                              f"allowed: {', '.join(sorted(schema))}")
+            errors.add(
+                where,
+                f"unknown key {key!r}{_suggest(key, list(schema))}; "
+                f"allowed: {', '.join(sorted(schema))}",
+            )
     for key, (types, default) in schema.items():
         if key in data:
             value = data[key]
@@ -257,8 +323,7 @@ def _section(data: Mapping[str, Any], where: str, schema: Mapping[str, tuple[Any
 
 
 def _pair(value: Any, where: str, key: str, errors: _Errors) -> tuple[float, float] | None:
-    if (not isinstance(value, list) or len(value) != 2
-            or not all(_type_ok(v, _NUM) for v in value)):
+    if not isinstance(value, list) or len(value) != 2 or not all(_type_ok(v, _NUM) for v in value):
         errors.add(where, f"{key} must be an array of two numbers [low, high], got {value!r}")
         return None
     lo, hi = float(value[0]), float(value[1])
@@ -280,8 +345,11 @@ def _channel(data: Any, where: str, errors: _Errors) -> daq.Channel | None:
             errors.add(where, "give either calibration or gain/offset, not both")
         cal = _CALIBRATIONS.get(c["calibration"])
         if cal is None:
-            errors.add(where, f"calibration {c['calibration']!r} is unknown; use one of "
-                              f"{sorted(_CALIBRATIONS)} or gain/offset")
+            errors.add(
+                where,
+                f"calibration {c['calibration']!r} is unknown; use one of "
+                f"{sorted(_CALIBRATIONS)} or gain/offset",
+            )
     else:
         gain = 1.0 if c.get("gain") is None else c["gain"]
         offset = 0.0 if c.get("offset") is None else c["offset"]
@@ -299,8 +367,15 @@ def _channel(data: Any, where: str, errors: _Errors) -> daq.Channel | None:
         errors.add(where, f"channel must be >= 0, got {c['channel']}")
         return None
     try:
-        return daq.channel(c["name"], c["channel"], rng, cal, unit=c["unit"],
-                           subdevice=c["subdevice"], aref=c["aref"])
+        return daq.channel(
+            c["name"],
+            c["channel"],
+            rng,
+            cal,
+            unit=c["unit"],
+            subdevice=c["subdevice"],
+            aref=c["aref"],
+        )
     except ValueError as exc:
         errors.add(where, str(exc))
         return None
@@ -370,16 +445,26 @@ class TrialPlan:
     def safety_limits(self) -> daq.SafetyLimits:
         """Return the runner's :data:`preisach.daq.SafetyLimits`."""
         s = self.safety
-        return daq.SafetyLimits(s["u_limits"][0], s["u_limits"][1], s["slew_rate"],
-                                s["ramp_rate"], s["y_limits"][0], s["y_limits"][1],
-                                int(s["max_missed_deadlines"]), int(s["max_consecutive_missed"]))
+        return daq.SafetyLimits(
+            s["u_limits"][0],
+            s["u_limits"][1],
+            s["slew_rate"],
+            s["ramp_rate"],
+            s["y_limits"][0],
+            s["y_limits"][1],
+            int(s["max_missed_deadlines"]),
+            int(s["max_consecutive_missed"]),
+        )
 
 
 def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | None:
     for key in data:
         if key not in _SECTIONS:
-            errors.add(path, f"unknown section [{key}]{_suggest(key, _SECTIONS)}; allowed: "
-                             f"{', '.join('[' + s + ']' for s in _SECTIONS)}")
+            errors.add(
+                path,
+                f"unknown section [{key}]{_suggest(key, _SECTIONS)}; allowed: "
+                f"{', '.join('[' + s + ']' for s in _SECTIONS)}",
+            )
     trial = _section(data.get("trial", {}), "[trial]", _TRIAL_KEYS, errors)
     ts = trial["sample_time"]
     if not (isinstance(ts, float) and math.isfinite(ts) and ts > 0):
@@ -392,8 +477,11 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | N
         errors.add("[device]", "kind = 'comedi' needs file = '/dev/comediN'")
     if dev["kind"] == "sim":
         if dev["state"] not in ("anhysteretic", "negative_saturation", "positive_saturation"):
-            errors.add("[device]", f"state must be 'anhysteretic', 'negative_saturation' or "
-                                   f"'positive_saturation', got {dev['state']!r}")
+            errors.add(
+                "[device]",
+                f"state must be 'anhysteretic', 'negative_saturation' or "
+                f"'positive_saturation', got {dev['state']!r}",
+            )
         if dev["adc_noise"] < 0:
             errors.add("[device]", f"adc_noise must be >= 0 V, got {dev['adc_noise']!r}")
         from .blocks import make_block
@@ -415,8 +503,11 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | N
     y_lim = _pair(safety["y_limits"], "[safety]", "y_limits", errors)
     if u_lim is not None:
         if u_lim[0] < -AMPLIFIER_LIMIT or u_lim[1] > AMPLIFIER_LIMIT:
-            errors.add("[safety]", f"u_limits = [{u_lim[0]:g}, {u_lim[1]:g}] V exceed the SA11 "
-                                   f"amplifier's +/-{AMPLIFIER_LIMIT:g} V")
+            errors.add(
+                "[safety]",
+                f"u_limits = [{u_lim[0]:g}, {u_lim[1]:g}] V exceed the SA11 "
+                f"amplifier's +/-{AMPLIFIER_LIMIT:g} V",
+            )
         if not u_lim[0] <= 0.0 <= u_lim[1]:
             errors.add("[safety]", "u_limits must contain 0 V (the safe state)")
         safety["u_limits"] = list(u_lim)
@@ -439,8 +530,11 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | N
             continue
         kind = st.get("kind")
         if kind not in STEP_KINDS:
-            errors.add(where, f"kind {kind!r} is unknown{_suggest(str(kind), list(STEP_KINDS))}; "
-                              f"choose from {', '.join(STEP_KINDS)}")
+            errors.add(
+                where,
+                f"kind {kind!r} is unknown{_suggest(str(kind), list(STEP_KINDS))}; "
+                f"choose from {', '.join(STEP_KINDS)}",
+            )
             continue
         where = f"steps[{i}] ({kind})"
         params = _section(st, where, {**_STEP_COMMON, **STEP_KINDS[kind]}, errors)
@@ -452,12 +546,22 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | N
         if out is None and "output" in data and not errors.items:  # pragma: no cover
             errors.add("[output]", "invalid channel")
         return None
-    return TrialPlan(path, trial["name"] or Path(path).stem, trial["description"], ts, dev,
-                     out, inp, safety, steps)
+    return TrialPlan(
+        path,
+        trial["name"] or Path(path).stem,
+        trial["description"],
+        ts,
+        dev,
+        out,
+        inp,
+        safety,
+        steps,
+    )
 
 
-def _check_step(kind: str, p: dict[str, Any], where: str, dev: Mapping[str, Any],
-                errors: _Errors) -> None:
+def _check_step(
+    kind: str, p: dict[str, Any], where: str, dev: Mapping[str, Any], errors: _Errors
+) -> None:
     for key in ("frequency", "duration", "cutoff", "hold_time"):
         if key in p and p[key] is not None and not p[key] > 0:
             errors.add(where, f"{key} must be > 0, got {p[key]!r}")
@@ -471,10 +575,16 @@ def _check_step(kind: str, p: dict[str, Any], where: str, dev: Mapping[str, Any]
             errors.add(where, f"target must be one of {sorted(_TARGETS)}, got {p['target']!r}")
         if p["offset"] is None and p["y_d"] is None:
             errors.add(where, "give offset (V) or y_d (V, the desired output)")
-        if p["offset"] is None and p["y_d"] is not None and p["model"] is None \
-                and dev.get("kind") != "sim":
-            errors.add(where, "y_d on a real device needs model = '...' to compute the offset "
-                              "(or give offset)")
+        if (
+            p["offset"] is None
+            and p["y_d"] is not None
+            and p["model"] is None
+            and dev.get("kind") != "sim"
+        ):
+            errors.add(
+                where,
+                "y_d on a real device needs model = '...' to compute the offset (or give offset)",
+            )
     if kind == "pi" and not p["noise_from"] <= p["noise_to"]:
         errors.add(where, "noise_from must be <= noise_to")
     if kind in ("noise", "pi") and p["amplitude"] < 0:
@@ -534,8 +644,14 @@ def _noise(p: Mapping[str, Any], duration: float, ts: float) -> NDArray[np.float
 
     if p["amplitude"] == 0:
         return np.zeros(int(round(duration / ts)))
-    return uniform_filtered_noise(duration, p["amplitude"], sample_time=ts,
-                                  hold_time=p["hold_time"], cutoff=p["cutoff"], seed=p["seed"])
+    return uniform_filtered_noise(
+        duration,
+        p["amplitude"],
+        sample_time=ts,
+        hold_time=p["hold_time"],
+        cutoff=p["cutoff"],
+        seed=p["seed"],
+    )
 
 
 def step_waveform(
@@ -563,17 +679,34 @@ def step_waveform(
     if step.kind == "initialise":
         u = wf.decaying_sine(p["duration"], p["frequency"], p["amplitude"], sample_time=ts).u
     elif step.kind == "fod_sweep":
-        u = wf.fod_sweep(p["levels"], u_min=p["u_min"], u_max=p["u_max"],
-                         frequency=p["frequency"], sample_time=ts, shape=p["shape"],
-                         order=p["order"]).u
+        u = wf.fod_sweep(
+            p["levels"],
+            u_min=p["u_min"],
+            u_max=p["u_max"],
+            frequency=p["frequency"],
+            sample_time=ts,
+            shape=p["shape"],
+            order=p["order"],
+        ).u
     elif step.kind == "wiping_out":
-        u = wf.wiping_out_input(p["frequency"], peaks=[float(v) for v in p["peaks"]],
-                                trough=p["trough"], u_min=p["u_min"], sample_time=ts,
-                                shape=p["shape"]).u
+        u = wf.wiping_out_input(
+            p["frequency"],
+            peaks=[float(v) for v in p["peaks"]],
+            trough=p["trough"],
+            u_min=p["u_min"],
+            sample_time=ts,
+            shape=p["shape"],
+        ).u
     elif step.kind == "cml":
         lo, hi = (float(v) for v in p["loop"])
-        u = wf.cml_input(p["frequency"], loop=(lo, hi), peak=p["peak"], u_min=p["u_min"],
-                         sample_time=ts, shape=p["shape"]).u
+        u = wf.cml_input(
+            p["frequency"],
+            loop=(lo, hi),
+            peak=p["peak"],
+            u_min=p["u_min"],
+            sample_time=ts,
+            shape=p["shape"],
+        ).u
     elif step.kind == "drive":
         u, info = _drive_waveform(plan, step)
     elif step.kind in ("noise", "pi"):
@@ -590,7 +723,7 @@ def step_waveform(
             if p["noise_gain"]:
                 i0, i1 = int(round(p["noise_from"] / ts)), min(n, int(round(p["noise_to"] / ts)))
                 eta = _noise(p, (i1 - i0) * ts, ts)[: i1 - i0]
-                u[i0:i0 + eta.size] += eta * p["noise_gain"] * p["input_gain"]
+                u[i0 : i0 + eta.size] += eta * p["noise_gain"] * p["input_gain"]
     elif step.kind == "hold":
         value = u_now if p["value"] is None else p["value"]
         u = np.full(max(1, int(round(p["duration"] / ts))), value)
@@ -617,14 +750,28 @@ def _drive_waveform(
     if p["offset"] is not None:
         off = p["offset"]
         if kind == "n":
-            wave = neutral_input(off, p["frequency"], u_range=u_range, cycles=p["cycles"],
-                                 sample_time=ts, u_hat=p["u_hat"])
+            wave = neutral_input(
+                off,
+                p["frequency"],
+                u_range=u_range,
+                cycles=p["cycles"],
+                sample_time=ts,
+                u_hat=p["u_hat"],
+            )
         else:
-            wave = branch_input(kind, off, p["frequency"], u_range=u_range, sample_time=ts,
-                                u_hat=p["u_hat"])
+            wave = branch_input(
+                kind, off, p["frequency"], u_range=u_range, sample_time=ts, u_hat=p["u_hat"]
+            )
     else:
-        init = drive_to_state(ModelPlant(model, ts), kind, p["y_d"], p["frequency"],
-                              tolerance=p["tolerance"], cycles=p["cycles"], u_hat=p["u_hat"])
+        init = drive_to_state(
+            ModelPlant(model, ts),
+            kind,
+            p["y_d"],
+            p["frequency"],
+            tolerance=p["tolerance"],
+            cycles=p["cycles"],
+            u_hat=p["u_hat"],
+        )
         wave = init.waveform
         info.update(y_d=p["y_d"], model_output=init.y_end, model=model.name)
     info["offset"] = wave.offset
@@ -656,8 +803,9 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
     errors = _Errors()
     lo, hi = plan.safety["u_limits"]
     slew = plan.safety["slew_rate"]
-    ch_lo, ch_hi = sorted((plan.output.physical(plan.output.range[0]),
-                           plan.output.physical(plan.output.range[1])))
+    ch_lo, ch_hi = sorted(
+        (plan.output.physical(plan.output.range[0]), plan.output.physical(plan.output.range[1]))
+    )
     ts = plan.sample_time
     u_now = 0.0
     for step in plan.steps:
@@ -670,28 +818,40 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
         if u.size == 0:
             errors.add(where, "the planned waveform is empty")
             continue
-        for bound, ok, what in ((lo, u >= lo, "below the output limit u_min"),
-                                (hi, u <= hi, "above the output limit u_max")):
+        for bound, ok, what in (
+            (lo, u >= lo, "below the output limit u_min"),
+            (hi, u <= hi, "above the output limit u_max"),
+        ):
             if not ok.all():
                 k = int(np.argmin(ok))
-                errors.add(where, f"the planned input reaches {u[k]:.6g} V at t = {k * ts:.6g} s "
-                                  f"(from the step's start), {what} = {bound:g} V")
+                errors.add(
+                    where,
+                    f"the planned input reaches {u[k]:.6g} V at t = {k * ts:.6g} s "
+                    f"(from the step's start), {what} = {bound:g} V",
+                )
         for bound, ok, what in ((ch_lo, u >= ch_lo, "below"), (ch_hi, u <= ch_hi, "above")):
             if not ok.all():
                 k = int(np.argmin(ok))
-                errors.add(where, f"the planned input {u[k]:.6g} V at t = {k * ts:.6g} s is "
-                                  f"{what} what the output channel can produce ({bound:.6g} V at "
-                                  f"the end of its connector range)")
+                errors.add(
+                    where,
+                    f"the planned input {u[k]:.6g} V at t = {k * ts:.6g} s is "
+                    f"{what} what the output channel can produce ({bound:.6g} V at "
+                    f"the end of its connector range)",
+                )
         rate = np.abs(np.diff(np.concatenate([[u_now], u]))) / ts
         if rate.size and rate.max() > slew * (1 + 1e-9):
             k = int(np.argmax(rate))
-            errors.add(where, f"the planned input changes at {rate[k]:.6g} V/s at "
-                              f"t = {k * ts:.6g} s,"
-                              f" above the slew_rate limit {slew:g} V/s")
+            errors.add(
+                where,
+                f"the planned input changes at {rate[k]:.6g} V/s at "
+                f"t = {k * ts:.6g} s,"
+                f" above the slew_rate limit {slew:g} V/s",
+            )
         u_now = float(u[-1])
     if errors.items:
-        raise TrialFileError(f"{plan.path}: {len(errors.items)} error(s)\n  "
-                             + "\n  ".join(errors.items))
+        raise TrialFileError(
+            f"{plan.path}: {len(errors.items)} error(s)\n  " + "\n  ".join(errors.items)
+        )
     return plan
 
 
@@ -724,8 +884,13 @@ class StepOutcome:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dictionary."""
-        d = {"index": self.index, "kind": self.kind, "name": self.name, "file": self.file,
-             "info": self.info}
+        d = {
+            "index": self.index,
+            "kind": self.kind,
+            "name": self.name,
+            "file": self.file,
+            "info": self.info,
+        }
         d.update({k: v for k, v in self.result.to_dict().items() if k not in ("path", "missed")})
         d["missed"] = self.result.missed[:100]
         return d
@@ -765,16 +930,26 @@ def _make_device(plan: TrialPlan, device: str | None) -> Any:
     if spec == "sim":
         d = plan.device
         return daq.virtual_ss15(
-            _load_model(d["model"]), d["state"], sample_time=plan.sample_time,
-            input_blocks=d["input_blocks"], output_blocks=d["output_blocks"],
-            moving_gain=d["moving_gain"], adc_noise=d["adc_noise"], adc_bits=d["adc_bits"],
-            dac_bits=d["dac_bits"], output=plan.output, input=plan.input, seed=d["seed"])
+            _load_model(d["model"]),
+            d["state"],
+            sample_time=plan.sample_time,
+            input_blocks=d["input_blocks"],
+            output_blocks=d["output_blocks"],
+            moving_gain=d["moving_gain"],
+            adc_noise=d["adc_noise"],
+            adc_bits=d["adc_bits"],
+            dac_bits=d["dac_bits"],
+            output=plan.output,
+            input=plan.input,
+            seed=d["seed"],
+        )
     if spec.startswith("comedi"):
         file = spec.partition(":")[2] or plan.device.get("file")
         if not file:
             raise ValueError("--device comedi needs a device file: comedi:/dev/comediN")
-        return daq.comedi_device(file, [plan.output], [plan.input],
-                                 calibration_file=plan.device["calibration_file"])
+        return daq.comedi_device(
+            file, [plan.output], [plan.input], calibration_file=plan.device["calibration_file"]
+        )
     raise ValueError(f"device {spec!r}: expected 'sim' or 'comedi:/dev/comediN'")
 
 
@@ -840,19 +1015,32 @@ def run_trial_file(
             u, info = step_waveform(plan, step, u_now)
             last = i == len(plan.steps) - 1
             meta: dict[str, Any] = {
-                "experiment": step.kind, "trial": plan.name, "step": step.index,
-                "step_name": step.name, "step_params": json.dumps(step.params, sort_keys=True),
+                "experiment": step.kind,
+                "trial": plan.name,
+                "step": step.index,
+                "step_name": step.name,
+                "step_params": json.dumps(step.params, sort_keys=True),
             }
-            meta.update({f"plan_{k}": v for k, v in info.items()
-                         if isinstance(v, (int, float, str)) and not isinstance(v, bool)})
+            meta.update(
+                {
+                    f"plan_{k}": v
+                    for k, v in info.items()
+                    if isinstance(v, (int, float, str)) and not isinstance(v, bool)
+                }
+            )
             if step.kind == "pi":
                 p = step.params
                 g = p["input_gain"]
                 controller: Any = daq.PIController(
-                    p["kp"] * g, p["ki"] * g, p["setpoint"], plan.sample_time, u,
+                    p["kp"] * g,
+                    p["ki"] * g,
+                    p["setpoint"],
+                    plan.sample_time,
+                    u,
                     enable_at=info["approach_samples"]
                     + int(round(p["enable_after"] / plan.sample_time)),
-                    average=max(1, int(round(p["average"] / plan.sample_time))))
+                    average=max(1, int(round(p["average"] / plan.sample_time))),
+                )
             else:
                 controller = daq.WaveformController(u)
             file = out / step.file_name
@@ -862,10 +1050,21 @@ def run_trial_file(
                     progress(done, planned, _s, _i + 1, len(plan.steps))
 
             try:
-                res = daq.run_trial(dev, controller, file, sample_time=plan.sample_time,
-                                    realtime=realtime, safety=safety, metadata=meta,
-                                    overwrite=overwrite, fsync=fsync, t0=t0, priority=priority,
-                                    ramp_at_end=last, progress=report)
+                res = daq.run_trial(
+                    dev,
+                    controller,
+                    file,
+                    sample_time=plan.sample_time,
+                    realtime=realtime,
+                    safety=safety,
+                    metadata=meta,
+                    overwrite=overwrite,
+                    fsync=fsync,
+                    t0=t0,
+                    priority=priority,
+                    ramp_at_end=last,
+                    progress=report,
+                )
             except TrialInterrupted as exc:
                 interrupted = exc
                 if not isinstance(exc.result, daq.TrialResult):  # pragma: no cover
@@ -879,12 +1078,17 @@ def run_trial_file(
                 break
     finally:
         doc = {
-            "trial": plan.name, "file": plan.path, "description": plan.description,
-            "device": dev.description, "realtime": bool(realtime or not dev.simulated),
-            "sample_time": plan.sample_time, "end_status": end_status,
+            "trial": plan.name,
+            "file": plan.path,
+            "description": plan.description,
+            "device": dev.description,
+            "realtime": bool(realtime or not dev.simulated),
+            "sample_time": plan.sample_time,
+            "end_status": end_status,
             "started": time.strftime("%Y-%m-%dT%H:%M:%S", time.localtime(started)),
             "elapsed": time.time() - started,
-            "steps_planned": len(plan.steps), "steps_run": len(outcomes),
+            "steps_planned": len(plan.steps),
+            "steps_run": len(outcomes),
             "steps": [o.to_dict() for o in outcomes],
         }
         tmp = summary.with_name(summary.name + ".tmp")
@@ -911,8 +1115,10 @@ class _ProgressBar:
         frac = done / planned if planned else 1.0
         width = 30
         bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
-        text = (f"step {number}/{total} {step.name:<12} [{bar}] {100 * frac:5.1f}% "
-                f"{done}/{planned} samples")
+        text = (
+            f"step {number}/{total} {step.name:<12} [{bar}] {100 * frac:5.1f}% "
+            f"{done}/{planned} samples"
+        )
         if self.tty:
             self.stream.write("\r" + text + ("\n" if done >= planned else ""))
             self.stream.flush()
@@ -926,41 +1132,62 @@ class _ProgressBar:
 
 def _cmd_check(args: argparse.Namespace) -> int:
     plan = check_trial(args.file)
-    print(f"{plan.path}: OK - {plan.name!r}, {len(plan.steps)} step(s) on "
-          f"{plan.device['kind']}, sample time {plan.sample_time:g} s")
+    print(
+        f"{plan.path}: OK - {plan.name!r}, {len(plan.steps)} step(s) on "
+        f"{plan.device['kind']}, sample time {plan.sample_time:g} s"
+    )
     u_now = 0.0
     for step in plan.steps:
         u, _ = step_waveform(plan, step, u_now)
         u_now = float(u[-1])
-        print(f"  {step.index + 1:2d}. {step.kind:<11} {step.name:<16} "
-              f"{u.size * plan.sample_time:8.3f} s "
-              f"input {u.min():8.2f} .. {u.max():7.2f} V")
+        print(
+            f"  {step.index + 1:2d}. {step.kind:<11} {step.name:<16} "
+            f"{u.size * plan.sample_time:8.3f} s "
+            f"input {u.min():8.2f} .. {u.max():7.2f} V"
+        )
     return 0
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     bar = None if args.quiet else _ProgressBar()
     try:
-        outcome = run_trial_file(args.file, args.output, device=args.device,
-                                 realtime=args.realtime, overwrite=args.overwrite,
-                                 priority=args.priority, progress=bar)
+        outcome = run_trial_file(
+            args.file,
+            args.output,
+            device=args.device,
+            realtime=args.realtime,
+            overwrite=args.overwrite,
+            priority=args.priority,
+            progress=bar,
+        )
     except TrialInterrupted as exc:
         out = exc.result
         if isinstance(out, TrialOutcome):
-            print(f"preisach trial: interrupted; recordings and {out.summary_file} are complete "
-                  "up to the interrupt", file=sys.stderr)
+            print(
+                f"preisach trial: interrupted; recordings and {out.summary_file} are complete "
+                "up to the interrupt",
+                file=sys.stderr,
+            )
         return 130
     for s in outcome.steps:
         r = s.result
-        print(f"{s.file}: {r.end_status}, {r.samples} samples"
-              + (f" (+{r.ramp_samples} ramp)" if r.ramp_samples else "")
-              + (f", {r.missed_deadlines} missed deadlines, max lateness "
-                 f"{r.max_lateness * 1e6:.0f} us" if r.realtime else ""))
+        print(
+            f"{s.file}: {r.end_status}, {r.samples} samples"
+            + (f" (+{r.ramp_samples} ramp)" if r.ramp_samples else "")
+            + (
+                f", {r.missed_deadlines} missed deadlines, max lateness "
+                f"{r.max_lateness * 1e6:.0f} us"
+                if r.realtime
+                else ""
+            )
+        )
     print(f"summary: {outcome.summary_file}")
     if not outcome.complete:
         last = outcome.steps[-1]
-        print(f"preisach trial: error: step {last.index + 1} ({last.name}) {outcome.end_status}",
-              file=sys.stderr)
+        print(
+            f"preisach trial: error: step {last.index + 1} ({last.name}) {outcome.end_status}",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -968,27 +1195,44 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Register ``preisach trial run|check`` on an argparse subparsers object."""
     p = subparsers.add_parser(
-        "trial", help="run or check a scripted rig trial (TOML)",
+        "trial",
+        help="run or check a scripted rig trial (TOML)",
         description="Scripted rig trials on the virtual SS15 or a Comedi card: one recording "
-        "per step plus summary.json.")
+        "per step plus summary.json.",
+    )
     sub = p.add_subparsers(dest="trial_command", metavar="ACTION", required=True)
-    r = sub.add_parser("run", help="run a trial file",
-                       description="Run a trial file; exits 1 with the reason when a step "
-                       "aborts, 130 when interrupted (the files are complete either way).")
+    r = sub.add_parser(
+        "run",
+        help="run a trial file",
+        description="Run a trial file; exits 1 with the reason when a step "
+        "aborts, 130 when interrupted (the files are complete either way).",
+    )
     r.add_argument("file", help="trial file (TOML)")
     r.add_argument("-o", "--output", required=True, help="output folder")
-    r.add_argument("--device", default=None,
-                   help="'sim' or 'comedi:/dev/comediN' (default: the file's [device] kind)")
-    r.add_argument("--realtime", action="store_true",
-                   help="pace a simulated device in real time (a real one always is)")
+    r.add_argument(
+        "--device",
+        default=None,
+        help="'sim' or 'comedi:/dev/comediN' (default: the file's [device] kind)",
+    )
+    r.add_argument(
+        "--realtime",
+        action="store_true",
+        help="pace a simulated device in real time (a real one always is)",
+    )
     r.add_argument("--overwrite", action="store_true", help="replace existing recordings")
-    r.add_argument("--priority", type=int, default=0,
-                   help="request SCHED_FIFO at this priority for the sample loop (default: no)")
+    r.add_argument(
+        "--priority",
+        type=int,
+        default=0,
+        help="request SCHED_FIFO at this priority for the sample loop (default: no)",
+    )
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=_cmd_run)
-    c = sub.add_parser("check", help="validate a trial file without running it",
-                       description="Validate a trial file and its planned waveforms; names "
-                       "every error.")
+    c = sub.add_parser(
+        "check",
+        help="validate a trial file without running it",
+        description="Validate a trial file and its planned waveforms; names every error.",
+    )
     c.add_argument("file", help="trial file (TOML)")
     c.set_defaults(func=_cmd_check)
     return p

@@ -98,7 +98,7 @@ class AugmentedModel:
         return self.base.positive_saturation()
 
     def anhysteretic_state(self) -> State:
-        """The anhysteretic state of the base model."""
+        """Return the anhysteretic state of the base model."""
         return self.base.anhysteretic_state()
 
     def neutral_state(self, l: float) -> State:  # noqa: E741

@@ -13,6 +13,36 @@ of any one rig.
 Sampling convention (the same as the C++ blocks): ``step(x)`` advances one sample interval
 with the input held at ``x`` and returns the output at the end of the interval; linear blocks
 are discretised exactly under this zero-order hold.
+
+Overlap with the virtual rig's C++ blocks (:mod:`preisach.blocks`).  Several candidates model
+the same physics as a rig block; they are kept as independent implementations here because the
+proof of diagnosis (:mod:`preisach.diagnose.cases`) uses the rig's blocks as the truth, and a
+candidate that called the truth's code would prove nothing about the code.  A unified block
+library would map them as follows:
+
+==========================  =============================================  ====================
+diagnosis block             rig block                                      difference
+==========================  =============================================  ====================
+:class:`StructuralMode`     ``StructuralMode(frequency, damping)``         same discretisation;
+                                                                           adds participation
+:class:`FirstOrderInputLag` ``InputLag(time_constant)``                    same physics
+:class:`Creep`              ``Creep(rate, tau_min, tau_max)``              both sums of lags;
+                                                                           here free weights at
+                                                                           fixed time constants
+                                                                           and a settled gain
+:class:`FractionalDelay`    ``Delay(samples)``, ``MovingAverage(length)``  fractional delay
+                                                                           here, whole samples
+                                                                           there
+:class:`SensorDrift`        ``OffsetDrift(rate, sigma, seed)``             deterministic rate
+                                                                           here, plus a random
+                                                                           walk there
+:class:`OutputFeedback`     ``PreisachStage(moving_gain)``                 centred polynomial
+                                                                           feedback here, linear
+                                                                           there
+==========================  =============================================  ====================
+
+:class:`RateDependentPlay`, :class:`RateDependentWidth`, :class:`LevelDependentGain` and
+:class:`GainOffset` have no rig counterpart.
 """
 
 from __future__ import annotations
@@ -66,6 +96,19 @@ def _nonneg(kind: str, name: str, value: Any) -> float:
     return v
 
 
+_CHECKS = {"finite": _finite, ">0": _positive, ">=0": _nonneg}
+
+
+def _lag(x: Array, pole: float, previous: float) -> Array:
+    """First-order lag ``y[k] = pole y[k-1] + (1 - pole) x[k]`` from ``y[-1] = previous``.
+
+    The exact zero-order-hold discretisation of ``tau dy/dt = x - y`` with
+    ``pole = exp(-dt / tau)``; units of ``x`` and ``previous`` alike (V, V/s, ...).
+    """
+    y, _ = signal.lfilter([1 - pole], [1.0, -pole], x, zi=[pole * previous])
+    return np.asarray(y)
+
+
 def _as_input(kind: str, x: ArrayLike) -> Array:
     a = np.ascontiguousarray(x, dtype=float)
     if a.ndim != 1:
@@ -79,8 +122,10 @@ def _as_input(kind: str, x: ArrayLike) -> Array:
 class Block:
     """Base class: a SISO block with named parameters, a state, ``reset``, ``step``, ``run``.
 
-    Subclasses set ``kind`` (short identifier), ``side`` (``"input"`` or ``"output"``) and
-    ``PARAMS`` (parameter names with units) and implement :meth:`_run` and :meth:`reset`.
+    Subclasses set ``kind`` (short identifier), ``side`` (``"input"`` or ``"output"``),
+    ``PARAMS`` (parameter names with units) and ``DOMAIN`` (``">0"`` or ``">=0"`` for the
+    parameters that must be positive or non-negative; the others must be finite), implement
+    :meth:`_run` and :meth:`reset`, and may derive discretised constants in :meth:`_derive`.
 
     Parameters
     ----------
@@ -94,6 +139,7 @@ class Block:
     kind: ClassVar[str] = ""
     side: ClassVar[str] = "output"
     PARAMS: ClassVar[tuple[tuple[str, str], ...]] = ()
+    DOMAIN: ClassVar[dict[str, str]] = {}
 
     def __init__(self, dt: float, **params: Any) -> None:
         self.dt = _positive(self.kind or "block", "dt", dt)
@@ -110,7 +156,13 @@ class Block:
 
     # -- parameters ---------------------------------------------------------------------
     def _set(self, params: dict[str, Any]) -> None:
-        self._params = {k: params[k] for k, _ in self.PARAMS}
+        """Validate and store the parameters, then derive the discretised constants."""
+        check = {k: _CHECKS[self.DOMAIN.get(k, "finite")] for k, _ in self.PARAMS}
+        self._params = {k: check[k](self.kind, k, params[k]) for k in check}
+        self._derive()
+
+    def _derive(self) -> None:
+        """Constants that follow from the parameters and ``dt`` (none by default)."""
 
     @property
     def params(self) -> dict[str, Any]:
@@ -123,7 +175,7 @@ class Block:
         return dict(self.PARAMS)
 
     def with_dt(self, dt: float) -> Block:
-        """The same physical block for another sample time (fresh state)."""
+        """Return the same physical block for another sample time (fresh state)."""
         return type(self)(dt, **self._params)
 
     # -- simulation ---------------------------------------------------------------------
@@ -141,6 +193,10 @@ class Block:
     def step(self, x: float) -> float:
         """Advance one sample with input ``x``; returns the output."""
         return float(self.run(np.array([x], dtype=float))[0])
+
+    def _static(self, x0: float) -> float:
+        """Output of a memoryless block for the input ``x0``."""
+        return float(self._run(np.array([_finite(self.kind, "x0", x0)]))[0])
 
     # -- persistence --------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
@@ -197,8 +253,7 @@ class _LinearFilter(Block):
     def _design(self) -> tuple[Array, Array, float]:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set(params)
+    def _derive(self) -> None:
         self._b, self._a, self._mix = self._design()
         self._zi = np.zeros(max(len(self._a), len(self._b)) - 1)
 
@@ -283,13 +338,12 @@ class StructuralMode(_LinearFilter):
     kind = "structural_mode"
     side = "output"
     PARAMS = (("f_n", "Hz"), ("zeta", ""), ("participation", ""))
+    DOMAIN = {"f_n": ">0", "zeta": ">0"}
 
     def _design(self) -> tuple[Array, Array, float]:
-        fn = _positive(self.kind, "f_n", self._params["f_n"])
-        z = _positive(self.kind, "zeta", self._params["zeta"])
-        m = _finite(self.kind, "participation", self._params["participation"])
-        b, a = _mode_zoh(2 * math.pi * fn, z, self.dt)
-        return b, a, m
+        p = self._params
+        b, a = _mode_zoh(2 * math.pi * p["f_n"], p["zeta"], self.dt)
+        return b, a, p["participation"]
 
 
 class Creep(Block):
@@ -348,7 +402,7 @@ class Creep(Block):
         p = self._params
         y = p["gain"] * x
         for k, (e, c) in enumerate(zip(self._lags, p["weights"])):
-            lag, _ = signal.lfilter([1 - e], [1.0, -e], x, zi=[e * self._z[k]])
+            lag = _lag(x, e, self._z[k])
             if x.size:
                 self._z[k] = lag[-1]
             if c != 0.0:
@@ -374,9 +428,9 @@ class FractionalDelay(Block):
     kind = "delay"
     side = "output"
     PARAMS = (("tau", "s"),)
+    DOMAIN = {"tau": ">=0"}
 
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set({"tau": _nonneg(self.kind, "tau", params["tau"])})
+    def _derive(self) -> None:
         d = self._params["tau"] / self.dt
         self._n = int(math.floor(d))
         self._frac = d - self._n
@@ -417,9 +471,9 @@ class FirstOrderInputLag(Block):
     kind = "rate_dependence"
     side = "input"
     PARAMS = (("tau", "s"),)
+    DOMAIN = {"tau": ">=0"}
 
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set({"tau": _nonneg(self.kind, "tau", params["tau"])})
+    def _derive(self) -> None:
         t = self._params["tau"]
         self._e = math.exp(-self.dt / t) if t > 0 else 0.0
         self._z = 0.0
@@ -434,8 +488,7 @@ class FirstOrderInputLag(Block):
             if x.size:
                 self._z = float(x[-1])
             return x.copy()
-        e = self._e
-        y, _ = signal.lfilter([1 - e], [1.0, -e], x, zi=[e * self._z])
+        y = _lag(x, self._e, self._z)
         self._z = float(y[-1])
         return y
 
@@ -468,16 +521,9 @@ class RateDependentPlay(Block):
     kind = "rate_dependence"
     side = "input"
     PARAMS = (("w_ref", "V"), ("exponent", ""), ("v_ref", "V/s"), ("tau_v", "s"))
+    DOMAIN = {"w_ref": ">=0", "exponent": ">=0", "v_ref": ">0", "tau_v": ">0"}
 
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set(
-            {
-                "w_ref": _nonneg(self.kind, "w_ref", params["w_ref"]),
-                "exponent": _nonneg(self.kind, "exponent", params["exponent"]),
-                "v_ref": _positive(self.kind, "v_ref", params["v_ref"]),
-                "tau_v": _positive(self.kind, "tau_v", params["tau_v"]),
-            }
-        )
+    def _derive(self) -> None:
         self._e = math.exp(-self.dt / self._params["tau_v"])
         self._last = 0.0
         self._v = 0.0
@@ -492,10 +538,9 @@ class RateDependentPlay(Block):
     def width(self, x: Array) -> tuple[Array, Array]:
         """Half-width (V) and smoothed rate (V/s) for the input ``x`` (state not advanced)."""
         v = np.diff(np.concatenate([[self._last], x])) / self.dt
-        e = self._e
-        vf, _ = signal.lfilter([1 - e], [1.0, -e], v, zi=[e * self._v])
+        vf = _lag(v, self._e, self._v)
         p = self._params
-        return p["w_ref"] * (np.abs(vf) / p["v_ref"]) ** p["exponent"], np.asarray(vf)
+        return p["w_ref"] * (np.abs(vf) / p["v_ref"]) ** p["exponent"], vf
 
     def _run(self, x: Array) -> Array:
         if x.size == 0:
@@ -526,8 +571,7 @@ class SensorDrift(Block):
     side = "output"
     PARAMS = (("offset", "V"), ("rate", "V/s"))
 
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set({k: _finite(self.kind, k, params[k]) for k in ("offset", "rate")})
+    def _derive(self) -> None:
         self._k = 0
 
     def reset(self, x0: float) -> float:
@@ -566,20 +610,11 @@ class LevelDependentGain(Block):
     kind = "sensor_nonlinearity"
     side = "output"
     PARAMS = (("c2", ""), ("c3", ""), ("x_c", "V"), ("span", "V"))
-
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set(
-            {
-                "c2": _finite(self.kind, "c2", params["c2"]),
-                "c3": _finite(self.kind, "c3", params["c3"]),
-                "x_c": _finite(self.kind, "x_c", params["x_c"]),
-                "span": _positive(self.kind, "span", params["span"]),
-            }
-        )
+    DOMAIN = {"span": ">0"}
 
     def reset(self, x0: float) -> float:
-        """Static map: returns the output for ``x0``."""
-        return float(self._run(np.array([_finite(self.kind, "x0", x0)]))[0])
+        """Return the output for ``x0`` (a static map has no state to reset)."""
+        return self._static(x0)
 
     def _run(self, x: Array) -> Array:
         p = self._params
@@ -635,21 +670,11 @@ class OutputFeedback(Block):
     kind = "non_congruence"
     side = "feedback"
     PARAMS = (("a", "V/V"), ("b", "V/V"), ("c", "V/V"), ("y_c", "V"), ("span", "V"))
-
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set(
-            {
-                "a": _finite(self.kind, "a", params["a"]),
-                "b": _finite(self.kind, "b", params["b"]),
-                "c": _finite(self.kind, "c", params["c"]),
-                "y_c": _finite(self.kind, "y_c", params["y_c"]),
-                "span": _positive(self.kind, "span", params["span"]),
-            }
-        )
+    DOMAIN = {"span": ">0"}
 
     def reset(self, x0: float) -> float:
-        """Static map: the input shift (V) for the previous output ``x0`` (V)."""
-        return float(self._run(np.array([_finite(self.kind, "x0", x0)]))[0])
+        """Return the input shift (V) for the previous output ``x0`` (V); a static map."""
+        return self._static(x0)
 
     def _run(self, x: Array) -> Array:
         p = self._params
@@ -661,7 +686,13 @@ class OutputFeedback(Block):
         """Run the Preisach ``table`` with this feedback; returns ``(y, u_eff, final_state)``."""
         p = self._params
         y, ue, fin = _core.simulate_moving(
-            table, np.ascontiguousarray(u, dtype=float), state, p["a"], p["b"], p["y_c"], p["span"],
+            table,
+            np.ascontiguousarray(u, dtype=float),
+            state,
+            p["a"],
+            p["b"],
+            p["y_c"],
+            p["span"],
             p["c"],
         )
         return np.asarray(y), np.asarray(ue), fin
@@ -695,16 +726,7 @@ class RateDependentWidth(Block):
     kind = "rate_dependence"
     side = "output"
     PARAMS = (("c", ""), ("exponent", ""), ("rho_ref", "V/s"), ("tau_v", "s"))
-
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set(
-            {
-                "c": _finite(self.kind, "c", params["c"]),
-                "exponent": _nonneg(self.kind, "exponent", params["exponent"]),
-                "rho_ref": _positive(self.kind, "rho_ref", params["rho_ref"]),
-                "tau_v": _positive(self.kind, "tau_v", params["tau_v"]),
-            }
-        )
+    DOMAIN = {"exponent": ">=0", "rho_ref": ">0", "tau_v": ">0"}
 
     def reset(self, x0: float) -> float:
         """At rest (rate 0): returns ``x0``."""
@@ -719,8 +741,7 @@ class RateDependentWidth(Block):
         """``(rho / rho_ref) ** p`` for the input samples ``u`` (V), from rest."""
         uu = np.asarray(u, dtype=float)
         v = np.abs(np.diff(uu, prepend=uu[:1])) / self.dt
-        e = math.exp(-self.dt / self._params["tau_v"])
-        rho, _ = signal.lfilter([1 - e], [1.0, -e], v, zi=[0.0])
+        rho = _lag(v, math.exp(-self.dt / self._params["tau_v"]), 0.0)
         return (np.maximum(rho, 0.0) / self._params["rho_ref"]) ** self._params["exponent"]
 
     def apply(self, x: ArrayLike, u: ArrayLike, anhysteretic: ArrayLike) -> Array:
@@ -749,11 +770,8 @@ class GainOffset(Block):
     side = "output"
     PARAMS = (("gain", ""), ("offset", "V"))
 
-    def _set(self, params: dict[str, Any]) -> None:
-        super()._set({k: _finite(self.kind, k, params[k]) for k in ("gain", "offset")})
-
     def reset(self, x0: float) -> float:
-        """Static map: returns ``gain * x0 + offset``."""
+        """Return ``gain * x0 + offset`` (a static map has no state to reset)."""
         return self._params["gain"] * _finite(self.kind, "x0", x0) + self._params["offset"]
 
     def _run(self, x: Array) -> Array:

@@ -98,11 +98,11 @@ class Candidate:
         raise NotImplementedError
 
     def starts(self, ctx: Context) -> list[Array]:
-        """Starting vectors for the optimiser (the engine keeps the best fit)."""
+        """Return starting vectors for the optimiser (the engine keeps the best fit)."""
         return [np.array([0.0 if s.lo <= 0.0 <= s.hi else s.lo for s in self.specs(ctx)])]
 
     def n_params(self, ctx: Context) -> int:
-        """Number of fitted parameters (for the parsimony penalty)."""
+        """Return the number of fitted parameters (for the parsimony penalty)."""
         return len(self.specs(ctx))
 
     # -- model ------------------------------------------------------------------------------
@@ -111,7 +111,7 @@ class Candidate:
         raise NotImplementedError
 
     def block(self, x: Array, dt: float) -> Block:
-        """The block for the fitted vector ``x`` at sample time ``dt``.
+        """Return the block for the fitted vector ``x`` at sample time ``dt``.
 
         Blocks are cached by ``(x, dt)`` (a fit evaluates the same parameters on every
         recording); callers reset a block before running it, so sharing one is safe.
@@ -427,10 +427,7 @@ class SensorNonlinearityCandidate(Candidate):
     block_type = LevelDependentGain
 
     def prepare(self, ctx: Context) -> None:
-        self.fixed = {
-            "x_c": 0.5 * (ctx.y_lo + ctx.y_hi),
-            "span": max(0.5 * (ctx.y_hi - ctx.y_lo), 1e-12),
-        }
+        self.fixed = {"x_c": ctx.y_centre, "span": ctx.y_half_span}
 
     def specs(self, ctx: Context) -> list[ParamSpec]:
         return [ParamSpec("c2", "", -0.3, 0.3, 0.01), ParamSpec("c3", "", -0.3, 0.3, 0.01)]
@@ -462,10 +459,7 @@ class NonCongruenceCandidate(Candidate):
     block_type = OutputFeedback
 
     def prepare(self, ctx: Context) -> None:
-        self.fixed = {
-            "y_c": 0.5 * (ctx.y_lo + ctx.y_hi),
-            "span": max(0.5 * (ctx.y_hi - ctx.y_lo), 1e-12),
-        }
+        self.fixed = {"y_c": ctx.y_centre, "span": ctx.y_half_span}
         self.limit = ctx.u_span / max(ctx.y_span, 1e-12)
 
     def specs(self, ctx: Context) -> list[ParamSpec]:
@@ -477,10 +471,15 @@ class NonCongruenceCandidate(Candidate):
         ]
 
     def starts(self, ctx: Context) -> list[Array]:
+        # The training error is rough in the linear gain: a wrong gain misplaces the band of
+        # input over which the relays stay saturated after every reversal from saturation
+        # (the feedback shifts their input by up to a * span), which the weights cannot
+        # follow.  So the gain is scanned densely, in steps that shift the relays' input by
+        # 0.6 % of the input span at the ends of the output range; the optimiser starts from
+        # the best point.
         g = self.limit
-        grid = np.geomspace(0.003, 0.3, 6)
-        cands = [np.array([s * f * g, 0.0, 0.0]) for s in (-1, 1) for f in grid]
-        cands += [np.array([0.0, s * 0.01 * g, 0.0]) for s in (-1, 1)]
+        cands = [np.array([a, 0.0, 0.0]) for a in np.linspace(-g, g, 161)]
+        cands += [np.array([0.0, s * f * g, 0.0]) for s in (-1, 1) for f in (0.01, 0.05)]
         return ctx.grid_search(self, cands, top=1)
 
     def params(self, x: Array) -> dict[str, Any]:

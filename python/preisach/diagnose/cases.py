@@ -21,7 +21,7 @@ The generators use functional forms that differ from diagnosis's candidates on p
   [the same physics discretised exactly under a zero-order hold];
 * ``creep`` - the logarithmic creep law: every output move ``dy`` adds
   ``s dy log10(1 + t / t_0)`` afterwards (a convolution; never settles) [a settled gain and
-  first-order lags at 0.1, 1 and 10 s];
+  first-order lags at 0.02, 0.2, 2 and 20 s with free weights];
 * ``delay`` - a first-order measurement low-pass of time constant ``s`` acting on the
   continuous (linearly interpolated) output, so its delay at low frequencies is ``s`` [a pure,
   fractional delay];
@@ -29,9 +29,33 @@ The generators use functional forms that differ from diagnosis's candidates on p
   random periods (8-60 s) and phases, amplitude ``s`` [a per-recording cubic spline in time];
 * ``non_congruence`` - a moving Preisach model with saturating feedback
   ``u_eff[k] = u[k] + s Y tanh((y[k-1] - y_c) / Y)``, ``y_c`` the mid output and ``Y`` a
-  quarter of the output span [output feedback with a linear and a quadratic term].
+  quarter of the output span [output feedback with linear, quadratic and cubic terms].
 
 ``kind="none"`` makes the null case: the same experiments without any effect.
+
+``generator="rig"`` takes the truth from the virtual SS15 rig instead (:mod:`preisach.daq`,
+its C++ blocks :mod:`preisach.blocks`), measured through its DAQ:
+
+* ``rate_dependence`` - ``InputLag``: the amplifier's RC lag before the relays.  This is the
+  rig's only rate-dependent mechanism; it widens loops in proportion to the input rate (to
+  first order the relays see ``u - tau du/dt``) but is *the same physics* as the candidate's
+  ``input_lag`` form, so this is a same-form test (the ``own`` generator's rate-scaled Everett
+  function is the different-form one);
+* ``structural_resonance`` - ``StructuralMode`` with full participation, damping 0.02-0.08;
+  the frequency (80-250 Hz) sets the size, which on these experiments cannot fall below about
+  3.5-5 x 1 mV (the ringing after each 40 ms step): smaller targets get a 250 Hz mode;
+* ``creep`` - ``Creep``: equal-weight first-order lags one decade apart between ``tau_min``
+  (10-100 ms) and ``tau_max`` (10-100 s), a Prony series like the candidate's;
+* ``delay`` - a pure ``Delay``, a ``MovingAverage`` or both in series (random form), with the
+  rig run at 20 kHz (input interpolated between the 1 kHz samples, as the amplifier smooths the
+  DAC's steps; the reading taken at the end of each sample), so that the lag is any multiple
+  of 50 us up to 5 ms rather than of the control clock's 1 ms;
+* ``sensor_drift`` - ``OffsetDrift``: a rate plus a seeded random walk per recording;
+* ``non_congruence`` - the moving Preisach stage ``u_eff = u + k y[k-1]`` with a positive
+  gain (the mean-field sign; loop gain at most 0.5 at the steepest point of the major loop).
+  A negative gain is absorbed almost entirely by a re-identified classical model (below 2.5 x
+  the noise even at -20 V/V on these experiments), so it cannot make a concealed case of the
+  requested size.
 """
 
 from __future__ import annotations
@@ -39,6 +63,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Union
@@ -52,7 +78,7 @@ from ..noise import uniform_filtered_noise
 from ..recording import Recording
 from ..waveforms import cml_input, fod_sweep, legs, wiping_out_input
 
-__all__ = ["EFFECT_KINDS", "Case", "case_inputs", "identify_fod", "make_case"]
+__all__ = ["EFFECT_KINDS", "Case", "case_inputs", "make_case", "run_case"]
 
 Array = NDArray[np.float64]
 PathLike = Union[str, "os.PathLike[str]"]
@@ -153,7 +179,7 @@ def case_inputs(
 # truths (the device's physics)
 # ----------------------------------------------------------------------------------------
 def _fast_model(model: PreisachModel) -> PreisachModel:
-    """Same range and saturation outputs, hysteretic mass up and reversible mass halved."""
+    """Return a model of the same range and outputs: more hysteretic mass, half the reversible."""
     w = model.cell_weights()
     diag = np.diag(np.diag(w))
     off = np.tril(w, -1)
@@ -198,7 +224,7 @@ def _log_creep(y: Array, t0: float, dt: float) -> Array:
 def _moving(
     model: PreisachModel, u: Array, state: State, a: float, yc: float, span: float
 ) -> Array:
-    """Moving model with saturating feedback ``u_eff = u + a span tanh((y_prev - yc) / span)``."""
+    """Simulate a moving model with feedback ``u_eff = u + a span tanh((y_prev - yc) / span)``."""
     sim = model.simulator(state)
     y = np.empty_like(u)
     prev = model.readout(state)
@@ -282,8 +308,18 @@ class Case:
     truth: dict[str, Any] = field(default_factory=dict)
 
     def identify(self, levels: int | None = None) -> PreisachModel:
-        """Model identified from the sweep (Mayergoyz, FOD grid; see :func:`identify_fod`)."""
-        return identify_fod(self.identification, levels)
+        """Identify a model from the sweep (Mayergoyz: :func:`preisach.identify.identify_fod`).
+
+        Parameters
+        ----------
+        levels : int, optional
+            Number of equally spaced FOD levels (V grid); default inferred from the sweep.
+
+        """
+        from ..identify import identify_fod
+
+        model, _ = identify_fod(self.identification, levels, name="identified from FOD sweep")
+        return model
 
     def save(self, folder: PathLike) -> None:
         """Write ``identification.npz``, one ``<name>.npz`` per experiment and ``truth.json``."""
@@ -307,17 +343,6 @@ class Case:
         recs = [Recording.load(d / f"{n}.npz") for n in info.pop("recordings")]
         kind = info.pop("kind")
         return cls(kind, Recording.load(d / "identification.npz"), recs, info)
-
-
-def identify_fod(sweep: Recording, levels: int | None = None) -> PreisachModel:
-    """Mayergoyz identification from an FOD sweep recording (FOD finder + ``from_fod_grid``)."""
-    from ..identify import find_fod_curves
-
-    lv = None
-    if levels is not None:
-        lv = np.linspace(float(sweep.u.min()), float(sweep.u.max()), int(levels))
-    fd = find_fod_curves(sweep.t, sweep.u, sweep.y, lv)
-    return PreisachModel.from_fod_grid(fd.levels, fd.y_grid, name="identified from FOD sweep")
 
 
 def _quantise(
@@ -372,17 +397,10 @@ def make_case(
     generator : {"own", "rig"}
         ``"own"``: this module's truths (forms unlike the candidates, see the module
         docstring).  ``"rig"``: the virtual SS15 rig of :mod:`preisach.daq` with its physics
-        blocks (:mod:`preisach.blocks`): ``input_lag`` (rate dependence), ``structural_mode``,
-        ``creep``, ``delay``/``moving_average``, ``offset_drift``, the moving Preisach stage
-        (non-congruence); measured through the rig's ADC (noise ``sigma``, ``adc_bits`` over
-        its input channel), ``adc_range`` is then unused.  For the rig's delay, whose
-        blocks only delay by whole or half samples, the option closest to ``effect_size`` is
-        taken; the rig's structural mode has full participation, so its size follows from its
-        random frequency (80-200 Hz: lower modes ring the sensor out of its range on these
-        experiments) and damping (0.02-0.08); the rig's moving-model gain is capped at 3 V/V
-        (a linear moving model is almost entirely absorbed by a re-identified classical
-        model: at that gain the rest is below 2 x the noise).  The size actually reached is
-        stored in ``truth["effect_size"]``.
+        blocks (see the module docstring), measured through the rig's ADC (noise ``sigma``,
+        ``adc_bits`` over its input channel; ``adc_range`` is then unused).  The size actually
+        reached is stored in ``truth["effect_size"]``: a delay case's lag is a whole number of
+        50 us steps, and a rig mode cannot be made smaller than about 3.5 x 1 mV.
 
     Returns
     -------
@@ -438,18 +456,18 @@ def make_case(
         target = effect_size * sigma
         sign = params.get("sign", 1.0)
         if isinstance(truth, _RigTruth) and kind == "structural_resonance":
-            strength = 1.0  # the rig's mode has full participation: its size is what it is
+            # full participation: the frequency sets the size (a lower mode rings more)
+            lo, hi = _RIG_MODE_BAND
+            inv = _solve_strength(lambda s: unexplained_rms(min(1.0 / s, hi)), target, 1.0 / hi)
+            strength = float(np.clip(1.0 / inv, lo, hi))
         elif isinstance(truth, _RigTruth) and kind == "delay":
-            # whole/half-sample delays only: take the option closest to the target (log scale)
-            sizes = [unexplained_rms(float(k + 1)) for k in range(len(_RIG_DELAYS))]
-            params = {**params, "option_sizes": [v / sigma for v in sizes]}
-            k = int(np.argmin([abs(math.log(max(v, 1e-300) / target)) for v in sizes]))
-            strength = float(k + 1)
+            n_max = int(round(_RIG_MAX_LAG / dt * _RIG_OVERSAMPLE))
+            strength = float(_closest_integer(unexplained_rms, target, n_max))
         else:
             start = _RIG_START[kind] if isinstance(truth, _RigTruth) else _START[kind]
             strength = _solve_strength(lambda s: unexplained_rms(sign * s), target, start)
-            if isinstance(truth, _RigTruth) and kind in _RIG_MAX:
-                strength = min(strength, _RIG_MAX[kind])
+            if isinstance(truth, _RigTruth) and kind == "non_congruence":
+                strength = min(strength, _moving_gain_cap(dev))
             strength *= sign
         rms, unexpl = effect_rms(strength), unexplained_rms(strength)
     recs = []
@@ -485,34 +503,94 @@ def make_case(
     return Case(kind, recs[0], recs[1:], info)
 
 
+def run_case(
+    kind: str,
+    *,
+    generator: str = "own",
+    seed: int = 0,
+    effect_size: float = 3.0,
+    sigma: float = 1e-3,
+    scale: float = 1.0,
+    cv: str = "auto",
+    max_effects: int = 3,
+) -> dict[str, Any]:
+    """Make a case, identify a model from its sweep, diagnose the rest; the outcome as a dict.
+
+    Parameters
+    ----------
+    kind, generator, seed, effect_size, sigma, scale
+        As for :func:`make_case` (``effect_size`` in units of ``sigma``; ``sigma`` in V).
+    cv, max_effects
+        As for :func:`preisach.diagnose.diagnose`.
+
+    Returns
+    -------
+    dict
+        JSON-friendly: ``kind``, ``generator``, ``seed``, ``size`` (effect size reached, in
+        units of ``sigma``), ``sigma`` (V), ``verdict``, ``effects`` (names in the order kept),
+        ``gain`` (relative held-out RMSE reduction of the first effect, 0 without one),
+        ``params`` (the first effect's fitted values, units as in the report), ``rmse_before``
+        and ``rmse_after`` (V), ``truth`` (:attr:`Case.truth`), ``seconds`` (wall time, s) and
+        ``summary`` (the report's text).
+
+    """
+    from .core import diagnose
+
+    t0 = time.perf_counter()
+    case = make_case(
+        kind, effect_size=effect_size, seed=seed, sigma=sigma, scale=scale, generator=generator
+    )
+    rep = diagnose(
+        case.identify(),
+        case.recordings,
+        identification=case.identification,
+        cv=cv,
+        max_effects=max_effects,
+    )
+    first = rep.effects[0] if rep.effects else None
+    return {
+        "kind": kind,
+        "generator": generator,
+        "seed": seed,
+        "size": float(case.truth["effect_size"]),
+        "sigma": sigma,
+        "verdict": rep.verdict,
+        "effects": [e.name for e in rep.effects],
+        "gain": 1 - first.heldout_rmse_after / first.heldout_rmse_before if first else 0.0,
+        "params": {
+            k: float(v["value"])
+            for k, v in (first.parameters.items() if first else ())
+            if isinstance(v, dict) and "value" in v
+        },
+        "rmse_before": rep.rmse_before,
+        "rmse_after": rep.rmse_after,
+        "truth": case.truth,
+        "seconds": time.perf_counter() - t0,
+        "summary": rep.summary(),
+    }
+
+
 # ----------------------------------------------------------------------------------------
 # the virtual rig's physics blocks as truth
 # ----------------------------------------------------------------------------------------
-_RIG_DELAYS: tuple[dict[str, Any], ...] = (
-    {"kind": "moving_average", "length": 2},
-    {"kind": "delay", "samples": 1},
-    {"kind": "moving_average", "length": 3},
-    {"kind": "moving_average", "length": 4},
-    {"kind": "delay", "samples": 2},
-    {"kind": "moving_average", "length": 6},
-    {"kind": "delay", "samples": 3},
-    {"kind": "moving_average", "length": 10},
-)
-_RIG_START = {"rate_dependence": 1e-4, "creep": 1e-3, "sensor_drift": 1e-3, "non_congruence": 0.01}
-# physically plausible ceilings: a linear moving model is almost entirely absorbed by a
-# re-identified classical model, so reaching the target size would need absurd feedback gains
-_RIG_MAX = {"non_congruence": 3.0}
-_LEAD_IN = (
-    0.3  # s held at u_min before each recording (after a ramp down from the rig's reset at 0 V)
-)
+#: Delay cases run the rig at 20 times the recording's sample rate (input held over each
+#: recording sample, as a DAC does; output read at the end of each): the measurement chain's
+#: latency is then a multiple of 50 us rather than of the 1 ms control clock.
+_RIG_OVERSAMPLE = 20
+#: Forms of the rig's measurement lag: a pure delay, a moving average, or both in series.
+_RIG_LAG_FORMS = ("delay", "moving_average", "delay_and_average")
+#: Largest lag (s) of a delay case: the thesis's 10-sample moving average at 1 kHz lags 4.5 ms.
+_RIG_MAX_LAG = 5e-3
+_RIG_START = {"rate_dependence": 1e-4, "creep": 1e-3, "sensor_drift": 1e-3, "non_congruence": 1.0}
+#: Structural-mode frequencies (Hz) of rig cases: below 80 Hz the mode rings the sensor out
+#: of its range on these experiments' 40 ms steps, above 250 Hz it is hardly excited.
+_RIG_MODE_BAND = (80.0, 250.0)
+_LEAD_IN = 0.3  # s held at u_min before each recording (after a ramp down from the rig's reset)
 
 
-def _rig_params(kind: str, rng: np.random.Generator) -> dict[str, float]:
-    if kind == "structural_resonance":
-        return {
-            "frequency": float(rng.uniform(80.0, 200.0)),
-            "damping": float(rng.uniform(0.02, 0.08)),
-        }
+def _rig_params(kind: str, rng: np.random.Generator) -> dict[str, Any]:
+    if kind == "structural_resonance":  # the frequency is then set by the effect size
+        return {"damping": float(rng.uniform(0.02, 0.08))}
     if kind == "creep":
         return {
             "tau_min": float(10 ** rng.uniform(-2, -1)),
@@ -520,33 +598,52 @@ def _rig_params(kind: str, rng: np.random.Generator) -> dict[str, float]:
         }
     if kind == "sensor_drift":
         return {"rate_share": float(rng.uniform(-1, 1)), "sigma_share": float(rng.uniform(0.2, 1))}
-    if kind == "non_congruence":
-        return {"sign": float(rng.choice([-1.0, 1.0]))}
-    if kind in ("rate_dependence", "delay", "none"):
+    if kind == "delay":
+        return {"form": str(rng.choice(_RIG_LAG_FORMS))}
+    if kind in ("rate_dependence", "non_congruence", "none"):
         return {}
     raise ValueError(f"kind: expected one of {EFFECT_KINDS + ('none',)}, got {kind!r}")
+
+
+def _moving_gain_cap(model: PreisachModel) -> float:
+    """Largest rig moving gain (V/V): loop gain 0.5 at the steepest point of the major loop.
+
+    The rig's moving stage feeds ``k y[k-1]`` back to the relays' input; with
+    ``k dy/du >= 1`` the loop would snap (a positive-feedback jump), so cases stay well below.
+    """
+    u = np.concatenate([np.linspace(model.u_min, model.u_max, 2001)] * 2)
+    u[2001:] = u[2001:][::-1]
+    y = model.simulate(u, model.negative_saturation()).output
+    du = np.diff(u)
+    ok = du != 0
+    return 0.5 / float(np.max(np.abs(np.diff(y)[ok] / du[ok])))
 
 
 @dataclass
 class _RigTruth:
     kind: str
     model: PreisachModel
-    params: dict[str, float]
+    params: dict[str, Any]
     dt: float
     rng_seed: int
+
+    @property
+    def oversample(self) -> int:
+        return _RIG_OVERSAMPLE if self.kind == "delay" else 1
 
     def blocks(
         self, strength: float, index: int
     ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], float]:
+        """Input blocks, output blocks and moving gain of the rig for ``strength``."""
         p, k = self.params, self.kind
         if k == "none" or strength == 0:
             return [], [], 0.0
         if k == "rate_dependence":
             return [{"kind": "input_lag", "time_constant": strength}], [], 0.0
-        if k == "structural_resonance":  # full participation: the size follows from f_n and zeta
+        if k == "structural_resonance":  # strength = frequency (Hz), full participation
             return (
                 [],
-                [{"kind": "structural_mode", "frequency": p["frequency"], "damping": p["damping"]}],
+                [{"kind": "structural_mode", "frequency": strength, "damping": p["damping"]}],
                 0.0,
             )
         if k == "creep":
@@ -562,8 +659,21 @@ class _RigTruth:
                 ],
                 0.0,
             )
-        if k == "delay":  # strength k >= 1 picks the k-th option
-            return [], [dict(_RIG_DELAYS[int(strength) - 1])], 0.0
+        if k == "delay":  # strength = lag in samples of the oversampled rig
+            s = int(round(strength))
+            if p["form"] == "delay":
+                return [], [{"kind": "delay", "samples": s}], 0.0
+            if p["form"] == "moving_average":  # lags (length - 1) / 2 samples
+                return [], [{"kind": "moving_average", "length": 2 * s + 1}], 0.0
+            d = s // 2
+            return (
+                [],
+                [
+                    {"kind": "delay", "samples": d},
+                    {"kind": "moving_average", "length": 2 * (s - d) + 1},
+                ],
+                0.0,
+            )
         if k == "sensor_drift":
             return (
                 [],
@@ -582,37 +692,60 @@ class _RigTruth:
         raise ValueError(f"kind: unknown effect {k!r}")  # pragma: no cover
 
     def describe(self, strength: float) -> dict[str, Any]:
+        """Describe the rig's blocks for ``strength`` (and a delay case's lag in seconds)."""
         ins, outs, g = self.blocks(strength, 0)
         d: dict[str, Any] = {
             "input_blocks": ins,
             "output_blocks": [{k: v for k, v in b.items() if k != "seed"} for b in outs],
+            "block_sample_time": self.dt / self.oversample,
         }
         if g:
             d["moving_gain"] = g
+        if self.kind == "delay" and strength:
+            d["lag"] = round(strength) * self.dt / self.oversample
         return d
+
+    def _fine(self, u: Array) -> tuple[Array, float]:
+        """Return the input at the rig's rate after the lead-in (V) and the rig's sample time (s).
+
+        Oversampled, the input is interpolated linearly between the recording's samples (the
+        amplifier smooths the DAC's steps), so that sample ``k`` is reached at the end of
+        its interval, where the reading is taken.
+        """
+        q = self.oversample
+        dtf = self.dt / q
+        m = self.model
+        lead = np.concatenate(
+            [
+                legs([0.0, m.u_min], 0.5, sample_time=dtf).u,  # from the rig's reset at 0 V
+                np.full(int(round(_LEAD_IN / dtf)), m.u_min),
+            ]
+        )
+        if q > 1:
+            u = np.interp(np.arange(u.size * q) - (q - 1), np.arange(u.size) * q, u)
+        return np.concatenate([lead, u]), dtf
+
+    def _coarse(self, y: Array, n: int) -> Array:
+        """Pick the reading at the end of every recording sample."""
+        q = self.oversample
+        return np.asarray(y)[y.size - n * q :][q - 1 :: q]
 
     def simulate(self, u: Array, strength: float, index: int) -> Array:
         """Clean plant output (V): the rig's block chain without the DAQ."""
         from ..blocks import BlockChain, make_block, preisach_stage
 
         ins, outs, g = self.blocks(strength, index)
+        uf, dtf = self._fine(u)
         m = self.model
         chain = BlockChain(
             [
-                *(make_block(b, self.dt) for b in ins),
-                preisach_stage(m, m.anhysteretic_state(), self.dt, g),
-                *(make_block(b, self.dt) for b in outs),
+                *(make_block(b, dtf) for b in ins),
+                preisach_stage(m, m.anhysteretic_state(), dtf, g),
+                *(make_block(b, dtf) for b in outs),
             ]
         )
-        lead = self._lead_in()
         chain.reset(0.0)
-        return np.asarray(chain.run(np.concatenate([lead, u])))[lead.size :]
-
-    def _lead_in(self) -> Array:
-        """From rest at 0 V (the rig's reset) down to u_min in 0.5 s, then held for 0.3 s."""
-        m = self.model
-        down = legs([0.0, m.u_min], 0.5, sample_time=self.dt).u
-        return np.concatenate([down, np.full(int(round(_LEAD_IN / self.dt)), m.u_min)])
+        return self._coarse(np.asarray(chain.run(uf)), u.size)
 
     def measure(
         self, u: Array, strength: float, index: int, sigma: float, bits: int, seed: int
@@ -621,11 +754,11 @@ class _RigTruth:
         from ..daq import DevicePlant, virtual_ss15
 
         ins, outs, g = self.blocks(strength, index)
-        m = self.model
+        uf, dtf = self._fine(u)
         rig = virtual_ss15(
-            m,
+            self.model,
             "anhysteretic",
-            sample_time=self.dt,
+            sample_time=dtf,
             input_blocks=ins,
             output_blocks=outs,
             moving_gain=g,
@@ -633,13 +766,9 @@ class _RigTruth:
             adc_bits=bits,
             seed=seed,
         )
-        lead = self._lead_in()
-        plant = DevicePlant(rig)
-        try:
-            return np.asarray(plant.run_open_loop(np.concatenate([lead, u])))[lead.size :]
-        finally:
-            if plant._tmp is not None:
-                plant._tmp.cleanup()
+        with tempfile.TemporaryDirectory(prefix="preisach-case-") as folder:
+            plant = DevicePlant(rig, record_dir=folder)
+            return self._coarse(np.asarray(plant.run_open_loop(uf)), u.size)
 
 
 class _ClassicalFit:
@@ -680,6 +809,28 @@ _START = {
     "sensor_drift": 2e-3,
     "non_congruence": 0.5,
 }
+
+
+def _closest_integer(f: Callable[[float], float], target: float, n_max: int) -> int:
+    """Integer ``s`` in ``[1, n_max]`` with ``f(s)`` closest to ``target`` on a log scale.
+
+    ``f`` must be increasing; bisection for the first ``s`` with ``f(s) >= target``, then the
+    closer of it and its predecessor.
+    """
+    lo, hi = 1, n_max
+    if f(float(lo)) >= target:
+        return lo
+    if f(float(hi)) < target:
+        return hi
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if f(float(mid)) >= target:
+            hi = mid
+        else:
+            lo = mid
+    d_lo = abs(math.log(max(f(float(lo)), 1e-300) / target))
+    d_hi = abs(math.log(max(f(float(hi)), 1e-300) / target))
+    return lo if d_lo < d_hi else hi
 
 
 def _solve_strength(f: Callable[[float], float], target: float, s0: float) -> float:

@@ -92,7 +92,7 @@ def diagnose(
     candidates : sequence of str or Candidate, optional
         Which explanations to test; default all of :data:`~preisach.diagnose.CANDIDATES`:
         ``rate_dependence``, ``structural_resonance``, ``creep``, ``delay``,
-        ``sensor_drift``, ``non_congruence``, ``gain_offset``.
+        ``sensor_drift``, ``non_congruence``, ``gain_offset``, ``sensor_nonlinearity``.
     initial_states : sequence, optional
         One per recording: a :class:`~preisach.State` or ``"negative_saturation"``,
         ``"positive_saturation"``, ``"anhysteretic"``, ``"unknown"``, or None.  Default

@@ -108,7 +108,7 @@ def _rec_name(rec: Recording, i: int) -> str:
 
 
 def _burn_in(u: Array, tol: float) -> int:
-    """Samples to skip when the initial state is unknown.
+    """Return the number of samples to skip when the initial state is unknown.
 
     Once the input has visited its maximum and its minimum the Preisach state no longer
     depends on the unknown start; a block acting before the relays (a lag, a play) may still
@@ -133,7 +133,7 @@ def prepare_recordings(
     block_length: float | None = None,
     identification: Sequence[Recording] = (),
 ) -> list[Rec]:
-    """Initial states, burn-in masks, time blocks and parities of the recordings.
+    """Prepare the recordings: initial states, burn-in masks, time blocks and fold parities.
 
     Identification recordings come last in the returned list, flagged ``ident``.
     """
@@ -298,6 +298,8 @@ class Context:
         self.u_span = model.u_max - model.u_min
         self.y_lo, self.y_hi = model.y_min, model.y_max
         self.y_span = abs(self.y_hi - self.y_lo)
+        self.y_centre = 0.5 * (self.y_lo + self.y_hi)
+        self.y_half_span = max(0.5 * self.y_span, 1e-12)
         self.longest_duration = max(float(recs[i].t[-1] - recs[i].t[0]) for i in self.diag)
         self.max_delay = float(max_delay) if max_delay is not None else max(0.05, 10 * self.dt_min)
         self.drift_knot_spacing = float(np.clip(self.longest_duration / 6.0, 1.5, 10.0))
@@ -433,16 +435,25 @@ class Context:
         return linalg.cho_solve(cho, rhs)
 
     def linearised_targets(
-        self, effects: Sequence[FittedEffect], base: Base, train: list[Mask]
+        self,
+        effects: Sequence[FittedEffect],
+        base: Base,
+        train: list[Mask],
+        feedback_from: dict[int, Array] | None = None,
     ) -> tuple[dict[int, sp.csr_matrix], dict[int, Array], bool]:
-        """Regressors and targets ``y - (Out(P) - P)`` about ``base`` (training recordings)."""
+        """Regressors and targets ``y - (Out(P) - P)`` about ``base`` (training recordings).
+
+        ``feedback_from`` gives the signals a feedback effect is driven by (see :meth:`stage`).
+        """
         moved = any(e.cand.side in ("input", "feedback") for e in effects)
         outs = [e for e in effects if e.cand.side == "output"]
         Rs, targets = {}, {}
         for i, r in enumerate(self.recs):
             if not train[i].any():
                 continue
-            P, ue, st = self.stage(i, base, effects)
+            P, ue, st = self.stage(
+                i, base, effects, None if feedback_from is None else feedback_from[i]
+            )
             Rs[i] = self.regressor(i, ue) if moved else self.regressor(i)
             targets[i] = r.y - (self.output_side(i, P, outs, st) - P) if outs else r.y
         return Rs, targets, not moved
@@ -523,9 +534,18 @@ class Context:
         return np.clip(x, self.model.u_min, self.model.u_max)
 
     def stage(
-        self, i: int, base: Base, effects: Sequence[FittedEffect]
+        self,
+        i: int,
+        base: Base,
+        effects: Sequence[FittedEffect],
+        feedback_from: Array | None = None,
     ) -> tuple[Array, Array, Stage]:
         """Run the Preisach operator of ``base`` with the input and feedback ``effects``.
+
+        With a feedback effect the loop is closed through the simulated output, unless
+        ``feedback_from`` (V, one value per sample) is given: the relays then see the input
+        shifted by the feedback of that signal's previous sample (series-parallel form, used to
+        fit the feedback with the measured output, see :class:`_Problem`).
 
         Returns the Preisach output (V), the input the relays saw (V, for the regressor) and
         the :class:`Stage` for output blocks that need the input.
@@ -537,7 +557,12 @@ class Context:
         u = self.preisach_input(i, ins) if ins else r.u
         if fb:
             blk = cast(OutputFeedback, fb[-1].cand.block(fb[-1].x, r.dt))
-            y, ue, _ = blk.simulate(table, u, r.state0)
+            if feedback_from is None:
+                y, ue, _ = blk.simulate(table, u, r.state0)
+            else:
+                prev = np.concatenate([feedback_from[:1], feedback_from[:-1]])
+                ue = np.clip(u + blk.run(prev), self.model.u_min, self.model.u_max)
+                y = self.preisach(i, base, ue)
             return y, ue, Stage(i, u, table)
         y = self.preisach(i, base, u if ins else None)
         return y, u, Stage(i, u, table)
@@ -573,7 +598,7 @@ class Context:
 
     # -- fitting --------------------------------------------------------------------------
     def grid_search(self, cand: Candidate, starts: list[Array], top: int = 1) -> list[Array]:
-        """The ``top`` start vectors with the smallest training SSE (used by candidates)."""
+        """Return the ``top`` start vectors with the smallest training SSE (used by candidates)."""
         prob = self._problem
         if prob is None or not starts:
             return starts[:top]
@@ -712,6 +737,14 @@ class _Problem:
         else:
             self.down = outs
         self.outs = outs
+        # a feedback candidate with profiled weights is fitted in series-parallel form: the
+        # relays see the input shifted by the feedback of the *measured* Preisach output
+        # (the recording minus the output blocks' correction at the reference base), so the
+        # weights for given feedback parameters are an exact linear least-squares problem;
+        # closing the loop through the simulated output instead would tie the effective input
+        # to the reference weights, which have absorbed most of the feedback.  Held-out
+        # predictions always close the loop.
+        self.feedback_from: dict[int, Array] | None = None
         if profile:
             # regressors at the reference base; fixed for output-side candidates
             self.ref_stage = {}
@@ -724,6 +757,11 @@ class _Problem:
                     self.R[i] = ctx.regressor(i, ue) if moved else ctx.regressor(i)
             self.cacheable = not moved
             self.factor = ctx.normal_factor(self.R, train, drift, self.cacheable)
+            if cand.side == "feedback":
+                self.feedback_from = {
+                    i: ctx.recs[i].y - (ctx.output_side(i, P, outs, st) - P)
+                    for i, (P, st) in self.ref_stage.items()
+                }
 
     def _outputs(self, i: int, x: Array, y: Array, st: Stage) -> Array:
         """All output blocks (fixed ones and, if output-side, the candidate) applied to ``y``."""
@@ -732,10 +770,12 @@ class _Problem:
             effs.append(FittedEffect(self.cand, x))
         return self.ctx.output_side(i, y, effs, st)
 
-    def theta(self, x: Array, exact: bool = False) -> Array:
+    def theta(self, x: Array, coarse: bool = False) -> Array:
         """Profiled Preisach weights for the candidate parameters ``x``.
 
-        ``exact`` is accepted for symmetry: every solve is exact.
+        ``coarse``: for an input-side or feedback candidate without drift, accumulate the
+        normal equations over every fourth training sample only (the quick evaluations of a
+        start-value scan).
         """
         ctx = self.ctx
         if self.cand.side == "output":
@@ -746,7 +786,9 @@ class _Problem:
             return ctx.solve_theta(Rs, targets, self.train, self.drift, self.cacheable, self.factor)
         effs = [*self.fixed.effects, FittedEffect(self.cand, x)]
         if self.drift:  # the drift projection needs the regressors themselves
-            Rs, targets, _ = ctx.linearised_targets(effs, self.fixed.base, self.train)
+            Rs, targets, _ = ctx.linearised_targets(
+                effs, self.fixed.base, self.train, self.feedback_from
+            )
             self._last_R = Rs
             self._last_u = None
             return ctx.solve_theta(Rs, targets, self.train, self.drift, False)
@@ -760,9 +802,14 @@ class _Problem:
             if not m.any():
                 continue
             r = ctx.recs[i]
-            P, ue, st = ctx.stage(i, self.fixed.base, effs)
+            fb = None if self.feedback_from is None else self.feedback_from[i]
+            P, ue, st = ctx.stage(i, self.fixed.base, effs, fb)
             target = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y
-            fold = np.where(m, 0, -1).astype(np.int32)
+            if coarse:
+                fold = np.full(r.n, -1, np.int32)
+                fold[self.coarse[i]] = 0
+            else:
+                fold = np.where(m, 0, -1).astype(np.int32)
             gram, b, *_ = _core.normal_equations(ctx.levels, ue, target, r.state0, fold, 1, "clamp")
             N += gram[0]
             rhs += b[0]
@@ -772,8 +819,8 @@ class _Problem:
         rhs += lam * ctx.theta0
         return linalg.solve(N, rhs, assume_a="pos")
 
-    def _profiled_predict(self, x: Array) -> dict[int, Array]:
-        theta = self.theta(x)
+    def _profiled_predict(self, x: Array, coarse: bool = False) -> dict[int, Array]:
+        theta = self.theta(x, coarse)
         if self.cand.side != "output" and self._last_u is not None:
             table = self.ctx.table(Base(theta))
             Ps = {
@@ -840,7 +887,7 @@ class _Problem:
     def residuals(self, x: Array, coarse: bool = False) -> Array:
         self.ctx.n_evals += 1
         parts = []
-        preds = self._profiled_predict(x) if self.profile else None
+        preds = self._profiled_predict(x, coarse) if self.profile else None
         for i, ix in enumerate(self.idx):
             if ix.size == 0:
                 continue
@@ -899,7 +946,7 @@ class StepResult:
 
 
 def make_folds(recs: list[Rec], scheme: str, max_groups: int = 3) -> list[Fold]:
-    """``"recordings"``: hold out groups of whole recordings; ``"blocks"``: alternating time blocks.
+    """Make the folds: ``"recordings"`` holds out groups of recordings, ``"blocks"`` time blocks.
 
     Identification recordings are always training data.
     """
@@ -965,7 +1012,7 @@ def sign_flip_p(d: Array, n_perm: int = 4000, seed: int = 0) -> float:
 
 
 def correlation_length(res: list[Array]) -> float:
-    """Samples over which the residual stays correlated (integral time scale, >= 1)."""
+    """Return the samples over which the residual stays correlated (integral scale, >= 1)."""
     lens = []
     for r in res:
         r = r[~np.isnan(r)]
@@ -995,9 +1042,10 @@ class Selection:
     refit_baseline: Score | None
 
 
-def _choose(quals: list[str], scores: dict[str, Score], n_par: dict[str, float], tie_alpha: float,
-            seed: int) -> str:
-    """The qualifying candidate with the lowest held-out error, unless a simpler one is as good.
+def _choose(
+    quals: list[str], scores: dict[str, Score], n_par: dict[str, float], tie_alpha: float, seed: int
+) -> str:
+    """Pick the qualifying candidate with the lowest held-out error, or a simpler one as good.
 
     A candidate with fewer parameters is preferred when the best one is not significantly
     better on the held-out blocks (one-sided sign-flip test at ``tie_alpha``): parsimony among

@@ -57,7 +57,7 @@ class EffectReport:
     heldout_rmse_after: float
 
     def to_dict(self) -> dict[str, Any]:
-        """The issue's schema for one effect (the statement leads the evidence)."""
+        """Return the issue's schema for one effect (the statement leads the evidence)."""
         return {
             "name": self.name,
             "evidence": f"{self.statement}. {self.evidence}",
@@ -112,7 +112,7 @@ class DiagnosisReport:
 
     # ------------------------------------------------------------------ output
     def to_dict(self) -> dict[str, Any]:
-        """The report in the issue's JSON schema (volts)."""
+        """Return the report in the issue's JSON schema (volts)."""
         return {
             "verdict": self.verdict,
             "effects": [e.to_dict() for e in self.effects],

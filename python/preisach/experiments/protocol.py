@@ -200,8 +200,11 @@ class TrialResult:
 
     def to_dict(self) -> dict[str, Any]:
         """Return the scalar results (no trace, no sample time) as a dict."""
-        return {f.name: getattr(self, f.name) for f in fields(self)
-                if f.name not in self.TRACES and f.name != "sample_time"}
+        return {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if f.name not in self.TRACES and f.name != "sample_time"
+        }
 
 
 @dataclass(frozen=True)

@@ -244,7 +244,8 @@ class FODData:
         kind = "FOD (first-order descending)" if fod else "FORC (first-order reversal)"
         sat = "negative" if fod else "positive"
         sat_line = (
-            f"u <= {_v(self.u_min + self.saturation_tol)}" if fod
+            f"u <= {_v(self.u_min + self.saturation_tol)}"
+            if fod
             else f"u >= {_v(self.u_max - self.saturation_tol)}"
         )
         n_nodes = n * (n + 1) // 2
@@ -272,8 +273,9 @@ class FODData:
             "but off the grid, kept as raw curves)",
         ]
         if self.curves:
-            lines.append(f"  {'#':>4}  {'t [s]':>21}  {'turn [V]':>10}  {'level':>5}  "
-                         f"{'nodes':>5}  status")
+            lines.append(
+                f"  {'#':>4}  {'t [s]':>21}  {'turn [V]':>10}  {'level':>5}  {'nodes':>5}  status"
+            )
         for c in self.curves:
             lvl = "-" if c.level is None else str(c.level)
             status = "used" if c.used else "rejected"
@@ -539,8 +541,14 @@ class _Candidate:
 
 
 def _classify(
-    s: NDArray[np.float64], t: NDArray[np.float64], idx: list[int], kind: list[int],
-    n_confirmed: int, sat_level: float, rev_tol: float, fr: _Frame,
+    s: NDArray[np.float64],
+    t: NDArray[np.float64],
+    idx: list[int],
+    kind: list[int],
+    n_confirmed: int,
+    sat_level: float,
+    rev_tol: float,
+    fr: _Frame,
 ) -> list[_Candidate]:
     """Candidate curves (one per top turning point) with first-order status and reason."""
     n = s.size
@@ -552,20 +560,30 @@ def _classify(
             continue
         if m >= n_confirmed:  # the recording ends before the input turned back
             start = idx[m - 1] if m > 0 else 0
-            out.append(_Candidate(
-                start, k, n - 1, False,
-                f"too short: the recording ends within reversal_tol = {_v(rev_tol)} of the "
-                f"{fr.turn_name} {fr.v(s[k])} (no {fr.branch})",
-            ))
+            out.append(
+                _Candidate(
+                    start,
+                    k,
+                    n - 1,
+                    False,
+                    f"too short: the recording ends within reversal_tol = {_v(rev_tol)} of the "
+                    f"{fr.turn_name} {fr.v(s[k])} (no {fr.branch})",
+                )
+            )
             continue
         stop = idx[m + 1]
         if m == 0:
-            out.append(_Candidate(
-                0, k, stop, False,
-                f"did not start from {fr.sat}: the recording begins at {fr.v(s[0])} "
-                f"(t = {t[0]:.6g} s), at or before the {fr.turn_name} {fr.v(s[k])}, with no "
-                f"visit to {fr.sat}",
-            ))
+            out.append(
+                _Candidate(
+                    0,
+                    k,
+                    stop,
+                    False,
+                    f"did not start from {fr.sat}: the recording begins at {fr.v(s[0])} "
+                    f"(t = {t[0]:.6g} s), at or before the {fr.turn_name} {fr.v(s[k])}, with no "
+                    f"visit to {fr.sat}",
+                )
+            )
             continue
         valley = idx[m - 1]
         if s[valley] <= sat_level:
@@ -577,23 +595,36 @@ def _classify(
         # reversals that all stay below it
         if p_sat >= 0 and max(s[idx[p]] for p in range(p_sat + 1, m, 2)) < s[k]:
             rev, back = idx[p_sat + 1], idx[p_sat + 2]
-            out.append(_Candidate(
-                valley, k, stop, False,
-                f"non-monotone {fr.first_leg}: after {fr.sat} at t = {t[idx[p_sat]]:.6g} s the "
-                f"input reversed at {fr.v(s[rev])} (t = {t[rev]:.6g} s) back to "
-                f"{fr.v(s[back])} before reaching the {fr.turn_name} {fr.v(s[k])}",
-            ))
+            out.append(
+                _Candidate(
+                    valley,
+                    k,
+                    stop,
+                    False,
+                    f"non-monotone {fr.first_leg}: after {fr.sat} at t = {t[idx[p_sat]]:.6g} s the "
+                    f"input reversed at {fr.v(s[rev])} (t = {t[rev]:.6g} s) back to "
+                    f"{fr.v(s[back])} before reaching the {fr.turn_name} {fr.v(s[k])}",
+                )
+            )
         else:
-            out.append(_Candidate(
-                valley, k, stop, False,
-                f"did not start from {fr.sat}: the {fr.first_leg} began at {fr.v(s[valley])} "
-                f"(t = {t[valley]:.6g} s), not within saturation_tol of {fr.bound}",
-            ))
+            out.append(
+                _Candidate(
+                    valley,
+                    k,
+                    stop,
+                    False,
+                    f"did not start from {fr.sat}: the {fr.first_leg} began at {fr.v(s[valley])} "
+                    f"(t = {t[valley]:.6g} s), not within saturation_tol of {fr.bound}",
+                )
+            )
     return out
 
 
 def _infer_levels(
-    values: NDArray[np.float64], s_min: float, s_max: float, level_tol: float,
+    values: NDArray[np.float64],
+    s_min: float,
+    s_max: float,
+    level_tol: float,
 ) -> NDArray[np.float64] | None:
     """Regular grid through the clustered ``values`` (working frame), or None."""
     if values.size < 3:
@@ -626,13 +657,16 @@ def _infer_levels(
 
 
 def _read_branch(
-    bs: NDArray[np.float64], by: NDArray[np.float64], lv: NDArray[np.float64], level_tol: float,
+    bs: NDArray[np.float64],
+    by: NDArray[np.float64],
+    lv: NDArray[np.float64],
+    level_tol: float,
 ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """Read a falling branch (working frame) at the ascending levels ``lv`` (all below the top).
 
     Returns the indices into ``lv`` that were reached and the outputs read there.
     """
-    env = np.minimum.accumulate(bs)             # monotone (non-increasing) envelope
+    env = np.minimum.accumulate(bs)  # monotone (non-increasing) envelope
     pos = np.searchsorted(-env, -lv, side="left")  # first sample with env <= level
     reached = pos < bs.size
     jr = np.nonzero(reached)[0]
@@ -654,9 +688,16 @@ def _read_branch(
 
 
 def _find(
-    t: Any, u: Any, y: Any, levels: ArrayLike | None, sign: float,
-    u_min: float | None, u_max: float | None, saturation_tol: float | None,
-    reversal_tol: float | None, level_tol: float | None,
+    t: Any,
+    u: Any,
+    y: Any,
+    levels: ArrayLike | None,
+    sign: float,
+    u_min: float | None,
+    u_max: float | None,
+    saturation_tol: float | None,
+    reversal_tol: float | None,
+    level_tol: float | None,
 ) -> FODData:
     ta, ua, ya = _validate(t, u, y)
     fr = _Frame(sign)
@@ -665,9 +706,7 @@ def _find(
     if not (math.isfinite(lo) and math.isfinite(hi)):
         raise ValueError("u_min and u_max must be finite")
     if not hi > lo:
-        raise ValueError(
-            f"u_max ({hi}) must exceed u_min ({lo}); u must not be constant"
-        )
+        raise ValueError(f"u_max ({hi}) must exceed u_min ({lo}); u must not be constant")
     span = hi - lo
     sat_tol = _tol("saturation_tol", saturation_tol, 0.01 * span, allow_zero=True)
     rev_tol = _tol("reversal_tol", reversal_tol, 0.005 * span, allow_zero=False)
@@ -703,8 +742,10 @@ def _find(
         else:
             grid = np.linspace(lo, hi, DEFAULT_N_LEVELS)
             lv = grid if sign > 0 else -grid[::-1]
-            source = (f"fallback: {DEFAULT_N_LEVELS} equally spaced levels over the input "
-                      "range; the turning values are not on a regular grid")
+            source = (
+                f"fallback: {DEFAULT_N_LEVELS} equally spaced levels over the input "
+                "range; the turning values are not on a regular grid"
+            )
     min_step = float(np.min(np.diff(lv)))
     if lvl_tol_user:
         if lvl_tol >= 0.5 * min_step:
@@ -722,7 +763,7 @@ def _find(
     records: list[CurveRecord] = []
     for c_no, c in enumerate(cands):
         k, stop = c.turn, c.stop
-        bs, by = s[k:stop + 1], ya[k:stop + 1]
+        bs, by = s[k : stop + 1], ya[k : stop + 1]
         level: int | None = None
         used = False
         n_nodes = 0
@@ -730,8 +771,10 @@ def _find(
         if c.first_order:
             i = int(np.argmin(np.abs(lv - s[k])))
             if abs(lv[i] - s[k]) > lvl_tol:
-                reason = (f"{fr.turn_name} {fr.v(s[k])} not on the grid (nearest level "
-                          f"{fr.v(lv[i])}, level_tol = {_v(lvl_tol)}); kept as a raw curve")
+                reason = (
+                    f"{fr.turn_name} {fr.v(s[k])} not on the grid (nearest level "
+                    f"{fr.v(lv[i])}, level_tol = {_v(lvl_tol)}); kept as a raw curve"
+                )
             else:
                 level, used = i, True
                 jr, vals = _read_branch(bs, by, lv[:i], lvl_tol)
@@ -745,15 +788,27 @@ def _find(
                     obs.append(np.array([ya[c.start]]))
                 reason = f"ok, {n_nodes} nodes"
                 if i > 0 and (jr.size == 0 or jr.min() > 0):
-                    reason += (f"; stops early at {fr.v(float(bs.min()))}, levels beyond not "
-                               "reached")
-        records.append(CurveRecord(
-            index=c_no, start=c.start, turn=k, stop=stop,
-            t_start=float(ta[c.start]), t_turn=float(ta[k]), t_stop=float(ta[stop]),
-            turning_value=float(ua[k]), level=level, first_order=c.first_order, used=used,
-            reason=reason, n_nodes=n_nodes, u=ua[k:stop + 1].copy(), y=by.copy(),
-            direction="descending" if sign > 0 else "ascending",
-        ))
+                    reason += f"; stops early at {fr.v(float(bs.min()))}, levels beyond not reached"
+        records.append(
+            CurveRecord(
+                index=c_no,
+                start=c.start,
+                turn=k,
+                stop=stop,
+                t_start=float(ta[c.start]),
+                t_turn=float(ta[k]),
+                t_stop=float(ta[stop]),
+                turning_value=float(ua[k]),
+                level=level,
+                first_order=c.first_order,
+                used=used,
+                reason=reason,
+                n_nodes=n_nodes,
+                u=ua[k : stop + 1].copy(),
+                y=by.copy(),
+                direction="descending" if sign > 0 else "ascending",
+            )
+        )
 
     # ---- average per node ----
     if flat:
@@ -779,8 +834,17 @@ def _find(
             if r.level is not None:
                 r.level = n - 1 - r.level
     return FODData(
-        levels=levels_out, y_grid=mean, count=cnt, spread=std, curves=records,
-        direction="descending" if sign > 0 else "ascending", u_min=lo, u_max=hi,
-        saturation_tol=sat_tol, reversal_tol=rev_tol, level_tol=lvl_tol,
-        levels_source=source, n_samples=int(ta.size),
+        levels=levels_out,
+        y_grid=np.asarray(mean, dtype=np.float64),
+        count=cnt,
+        spread=np.asarray(std, dtype=np.float64),
+        curves=records,
+        direction="descending" if sign > 0 else "ascending",
+        u_min=lo,
+        u_max=hi,
+        saturation_tol=sat_tol,
+        reversal_tol=rev_tol,
+        level_tol=lvl_tol,
+        levels_source=source,
+        n_samples=int(ta.size),
     )

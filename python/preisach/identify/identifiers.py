@@ -423,9 +423,7 @@ def _unique_names(recs: Sequence[Any]) -> list[str]:
     return out
 
 
-def _levels_arg(
-    levels: ArrayLike | int | None, lo: float, hi: float
-) -> NDArray[np.float64] | None:
+def _levels_arg(levels: ArrayLike | int | None, lo: float, hi: float) -> NDArray[np.float64] | None:
     if levels is None:
         return None
     if np.ndim(levels) == 0:

@@ -164,9 +164,7 @@ class SurfaceFitResult:
         return format_table([self], digits=digits)
 
 
-def format_table(
-    fits: Iterable[SurfaceFitResult | SqrtSurface], digits: int = 3
-) -> str:
+def format_table(fits: Iterable[SurfaceFitResult | SqrtSurface], digits: int = 3) -> str:
     """Format surfaces side by side like Table 3.1 of the thesis.
 
     Parameters
@@ -273,9 +271,7 @@ def _to_internal(p: NDArray[np.float64], b_lo: float, b_hi: float) -> NDArray[np
     if not off > 0.0:  # outside the domain of this curve: keep the shape, move the pole
         off = max(b_hi - b_lo, 1.0) * 1e-3
         x3 = b_lo - off
-    return np.array(
-        [x1 + x2 * math.sqrt(b_lo - x3), x1 + x2 * math.sqrt(b_hi - x3), math.log(off)]
-    )
+    return np.array([x1 + x2 * math.sqrt(b_lo - x3), x1 + x2 * math.sqrt(b_hi - x3), math.log(off)])
 
 
 def _from_internal(q: NDArray[np.float64], b_lo: float, b_hi: float) -> NDArray[np.float64]:
@@ -432,9 +428,7 @@ def _validate(
         if not np.any(np.isfinite(yg[:, 0])):
             raise ValueError("y_grid[:, 0] (the beta = u_min column, y_min) has no finite value")
     else:
-        raise ValueError(
-            f"y_min_source must be 'column_mean' or 'corner', got {y_min_source!r}"
-        )
+        raise ValueError(f"y_min_source must be 'column_mean' or 'corner', got {y_min_source!r}")
     try:
         f = float(frequency)
     except (TypeError, ValueError) as exc:
@@ -612,7 +606,13 @@ def fit_sqrt_surface(
 
         try:
             sol = least_squares(
-                resid, c0, method="trf", x_scale=1.0, ftol=1e-15, xtol=1e-15, gtol=1e-15,
+                resid,
+                c0,
+                method="trf",
+                x_scale=1.0,
+                ftol=1e-15,
+                xtol=1e-15,
+                gtol=1e-15,
                 max_nfev=2000,
             )
             cand = list(np.asarray(sol.x, float) / to_c)
@@ -641,7 +641,7 @@ def fit_sqrt_surface(
     sse = float(r @ r)
     npts = int(r.size)
     rss = math.sqrt(sse)
-    surface = SqrtSurface(*(float(v) for v in final_p), fit_error=rss, **kw)
+    surface = SqrtSurface(*(float(v) for v in final_p), fit_error=rss, **kw)  # type: ignore[misc]
     return SurfaceFitResult(
         surface=surface,
         curve_params=curve_params,
