@@ -111,3 +111,24 @@ def test_console_script_entry_point():
         [sys.executable, "-m", "preisach.cli", "--help"], capture_output=True, text=True
     )
     assert r.returncode == 0 and "demo" in r.stdout
+
+
+def test_verify_with_a_bad_model_file_prints_an_error_not_a_traceback(tmp_path, capsys):
+    import numpy as np
+
+    rec = tmp_path / "rec.csv"
+    Recording.from_arrays(u=np.linspace(-100.0, 100.0, 50), y=np.zeros(50), sample_time=1e-3).save(
+        rec
+    )
+    good = tmp_path / "good.npz"
+    PreisachModel.builtin(levels=11).save(good)
+    (tmp_path / "empty.npz").write_bytes(b"")
+    (tmp_path / "truncated.npz").write_bytes(good.read_bytes()[:300])
+    d = dict(np.load(good))
+    del d["version"]
+    np.savez(tmp_path / "noversion.npz", **d)
+    for name in ("empty.npz", "truncated.npz", "noversion.npz"):
+        assert main(["verify", str(tmp_path / name), str(rec)]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith("preisach verify: error: ") and name in err
+        assert "Traceback" not in err

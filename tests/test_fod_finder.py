@@ -140,6 +140,45 @@ def test_noisy_recording_within_a_few_mv():
     assert np.sqrt(np.mean(err**2)) < 0.003
 
 
+@pytest.mark.parametrize("sigma", [0.08, 0.3, 0.5])
+def test_gaussian_dither_on_u_keeps_every_curve_on_the_exact_grid(sigma):
+    # Gaussian dither: the extreme samples overstate the turning values by up to ~3 sigma, and
+    # with sigma = 0.3 V the input reverses by more than the default 1 V tolerance on the slow
+    # legs; the grid must still be exactly -100 + 10 i, inside the recorded input range
+    t, u, y = thesis_sweep(f=1.0, fs=1000.0)
+    un = u + np.random.default_rng(7).normal(0.0, sigma, u.size)
+    d = find_fod_curves(t, un, y)
+    np.testing.assert_array_equal(d.levels, LEVELS)
+    assert d.input_noise == pytest.approx(sigma, rel=0.1)
+    assert d.reversal_tol >= 9.0 * sigma and d.reversal_tol >= 1.0
+    assert len(d.curves) == 20 and all(c.used and c.first_order for c in d.curves)
+    assert [c.level for c in d.curves] == list(range(1, 21))
+    # turning values estimated from the samples around the extreme (the extreme sample is
+    # biased upwards by the noise): nearly unbiased, well within level_tol
+    tv = np.array([c.turning_value for c in d.curves]) - LEVELS[1:]
+    assert abs(np.mean(tv)) < 0.35 * sigma
+    assert np.max(np.abs(tv)) < min(2.0 * sigma, 0.9 * d.level_tol)
+    err = d.y_grid[II, JJ] - expected_fod_grid()[II, JJ]
+    assert np.all(np.isfinite(err)) and np.max(np.abs(err)) < 0.25 * sigma
+    assert "input noise estimate" in d.report()
+
+
+def test_noise_free_turning_values_are_the_extreme_samples():
+    t, u, y = thesis_sweep(f=1.0, fs=1000.0)
+    d = find_fod_curves(t, u, y)
+    assert d.input_noise == 0.0 and d.reversal_tol == pytest.approx(1.0)
+    assert [c.turning_value for c in d.curves] == [float(u[c.turn]) for c in d.curves]
+
+
+def test_inferred_grid_never_extends_beyond_the_input_range():
+    # the recording turns at 100 V, but u_max (positive saturation) is declared as 90 V
+    t, u, y = exact_sweep()
+    d = find_fod_curves(t, u, y, u_min=-100.0, u_max=90.0)
+    np.testing.assert_array_equal(d.levels, LEVELS[:-1])
+    top = d.curves[-1]
+    assert top.turning_value == 100.0 and not top.used and "not on the grid" in top.reason
+
+
 @pytest.mark.parametrize("f", [2.0, 4.0])
 def test_faster_sweeps_and_other_surfaces(f):
     surf = TABLE_3_1[int(f)]

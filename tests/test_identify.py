@@ -164,6 +164,24 @@ def test_surface_recovers_table_3_1_from_a_noise_free_sweep_recording():
         assert getattr(s, name) == pytest.approx(getattr(ref, name), rel=0.05)
 
 
+def test_surface_y_min_source_corner_or_column_mean(fitted, sweep):
+    # Eq 3.1 takes y_min from the measured corner y(u_hat, -u_hat); the default averages the
+    # end points y(alpha, u_min) of every FOD curve (the same output, measured 20 times)
+    default_model, default_rep = fitted["surface"]
+    fd = default_rep.fod
+    col = fd.y_grid[:, 0]
+    assert default_rep.surface_fit.surface.y_min == pytest.approx(np.mean(col[np.isfinite(col)]))
+    assert default_model.y_min == default_rep.surface_fit.surface.y_min
+    assert default_model.metadata["y_min_source"] == "column_mean"
+    model, rep = identify_surface(sweep, frequency=1.0, y_min_source="corner")
+    assert rep.surface_fit.surface.y_min == fd.y_grid[-1, 0]
+    assert model.y_min == fd.y_grid[-1, 0] and model.metadata["y_min_source"] == "corner"
+    assert model.y_min != default_model.y_min  # the noise differs
+    assert abs(model.y_min - TABLE_3_1[1].y_min) < 5 * NOISE
+    with pytest.raises(ValueError, match="y_min_source"):
+        identify_surface(sweep, y_min_source="mean")
+
+
 def test_lsq_report(fitted):
     model, rep = fitted["lsq"]
     q = rep.lsq
@@ -334,6 +352,27 @@ def test_lsq_warns_when_a_recording_never_saturates():
     _, rep = identify_lsq([outer, inner], lv, lambdas=[1e-6])
     assert any(w.startswith("inner: the input stays inside the table range") for w in rep.warnings)
     assert not any(w.startswith("outer") for w in rep.warnings)
+
+
+def test_lsq_warns_when_there_are_fewer_samples_than_parameters(truth):
+    u = np.r_[np.linspace(-100.0, 100.0, 20), np.linspace(100.0, -50.0, 11)[1:]]
+    y = truth.simulate(u, truth.negative_saturation()).output
+    short = Recording.from_arrays(u=u, y=y, sample_time=1e-3, experiment="short")
+    _, rep = identify_lsq(short, 21, folds=2)
+    assert rep.lsq.n_samples < rep.lsq.n_params == 211
+    assert rep.lsq.fit_rms < 1e-3  # the fit rms looks perfect ...
+    (w,) = [w for w in rep.warnings if "underdetermined" in w]  # ... but the report says why
+    assert f"only {rep.lsq.n_samples} samples were fitted for 211 parameters" in w
+    assert "underdetermined" in rep.summary()
+    _, rep = identify_lsq(short, 5, folds=2)  # 11 parameters: determined, no warning
+    assert not any("underdetermined" in w for w in rep.warnings)
+
+
+def test_identifiers_reject_recordings_with_fewer_than_2_samples(sweep):
+    empty = Recording.from_arrays(u=np.zeros(1), y=np.zeros(1), sample_time=1e-3, experiment="e")
+    for fn in (identify_fod, identify_surface, identify_lsq):
+        with pytest.raises(ValueError, match="e: .*at least 2 samples"):
+            fn([sweep, empty])
 
 
 def test_lsq_rejects_bad_arguments(sweep):

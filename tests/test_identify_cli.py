@@ -149,6 +149,60 @@ def test_bad_input_exits_1_with_a_clear_message(files, tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     assert run(["verify", files["cml"], files["cml"]]) == 1
     assert "not a" in capsys.readouterr().err
+    # a CSV with a header and no rows
+    header_only = tmp_path / "header_only.csv"
+    header_only.write_text("t,u,y\n")
+    assert run(["identify", str(header_only), "-o", str(tmp_path / "m.npz")]) == 1
+    err = capsys.readouterr().err
+    assert "header_only.csv" in err and "at least 2 samples, got 0" in err
+    fod_model = tmp_path / "fod.npz"
+    assert run(["identify", files["fod_sweep"], "-o", str(fod_model)]) == 0
+    capsys.readouterr()
+    assert run(["verify", str(fod_model), str(header_only)]) == 1
+    assert "header_only.csv" in capsys.readouterr().err
+    # --levels is capped for the FOD grid methods (the grid costs levels^2)
+    for method in ("fod", "surface"):
+        argv = ["identify", files["fod_sweep"], "-o", str(tmp_path / "m.npz"), "--method", method]
+        assert run([*argv, "--levels", "202"]) == 1
+        err = capsys.readouterr().err
+        assert "--levels: at most 201 levels" in err and method in err
+    assert not (tmp_path / "m.npz").exists()
+    # --y-min-source belongs to the surface method
+    assert run([*argv[:-2], "--method", "fod", "--y-min-source", "corner"]) == 1
+    assert "--y-min-source applies to --method surface only" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         run(["identify", files["fod_sweep"]])  # -o is required: argparse usage error
     assert exc.value.code == 2
+
+
+def test_identify_surface_y_min_source(files, capsys):
+    models = {}
+    for source in ("column_mean", "corner", None):
+        path = files["dir"] / f"surface_{source}.npz"
+        argv = ["identify", files["fod_sweep"], "-o", str(path), "--method", "surface"]
+        if source is not None:
+            argv += ["--y-min-source", source]
+        assert run(argv) == 0
+        capsys.readouterr()
+        models[source] = PreisachModel.load(path)
+    assert models[None] == models["column_mean"]  # the default
+    assert models[None].metadata["y_min_source"] == "column_mean"
+    assert models["corner"].metadata["y_min_source"] == "corner"
+    assert models["corner"].y_min != models["column_mean"].y_min
+    truth = PreisachModel.builtin("ss15-4hz", levels=101)
+    for m in models.values():
+        assert abs(m.y_min - truth.y_min) < 5e-3  # 1 mV noise
+
+
+def test_verify_reports_inputs_outside_the_model_range(files, tmp_path, capsys):
+    model_path = tmp_path / "narrow.npz"
+    PreisachModel.builtin("ss15-4hz", levels=41).save(model_path)
+    u = np.r_[np.linspace(-100.0, 110.0, 300), np.linspace(110.0, -100.0, 300)]
+    rec = tmp_path / "overdriven.csv"
+    Recording.from_arrays(u=u, y=np.sin(u / 50.0), sample_time=1e-3).save(rec)
+    assert run(["verify", str(model_path), str(rec), files["cml"]]) == 0
+    captured = capsys.readouterr()
+    n_out = int(np.count_nonzero(u > 100.0))
+    assert f"preisach verify: warning: overdriven: {n_out} of 600 input samples" in captured.err
+    rows = {ln.split()[0]: ln.split() for ln in captured.out.splitlines()[3:]}
+    assert rows["overdriven"][1:3] == ["600", str(n_out)] and rows["cml"][2] == "0"

@@ -226,15 +226,68 @@ def test_slopes_match_finite_differences(ss15):
         assert sl.falling == pytest.approx(down, rel=1e-5)
 
 
-def test_subderivative_interval_at_reversal(ss15):
-    m = ss15[1]
-    s = m.state_from_extrema([60.0, -30.0])  # just reversed downward at -30
-    sl = m.slopes(s)
-    lo, hi = sl.interval
-    assert lo <= hi
-    # Continuing down follows the branch, reversing up starts at the diagonal slope 2*kappa.
-    assert sl.rising == pytest.approx(2 * TABLE_3_1[1].kappa(-30.0), rel=0.02)
-    assert lo <= 2 * TABLE_3_1[1].kappa(-30.0) * 1.02 and hi >= sl.falling
+def _appendix_a_interval(surf, us, prev):
+    """Ends of the subderivative interval of Eq A.38 at a reversal ``us`` (V) whose previous
+    dominant extremum is ``prev`` (V), by quadrature of the surface's weight density.
+
+    Appendix A works in (r, s) = ((alpha - beta) / 2, (alpha + beta) / 2): the density there is
+    v(r, s) = 2 v(alpha, beta) (the Jacobian of alpha = s + r, beta = s - r is 2), and its
+    kappa(u) is the slope just after a reversal (A.14 with r~ = 0), i.e. twice the kappa of
+    Eq 2.14 (half the initial FOD slope), which SqrtSurface.kappa returns.  A.38:
+    y'_lambda(us) = 2 lambda int_0^{|us - prev| / 2} v(r, us - sgn(us - prev) r) dr + kappa(us).
+    """
+    from scipy.integrate import quad
+
+    sgn = np.sign(us - prev)
+
+    def v_rs(r):
+        s = us - sgn * r
+        return 2.0 * float(surf.weight_density(s + r, s - r))
+
+    integral, _ = quad(v_rs, 0.0, abs(us - prev) / 2.0, epsabs=1e-12)
+    kappa = 2.0 * float(surf.kappa(us))
+    return kappa, kappa + 2.0 * integral  # lambda = 0 and lambda = 1
+
+
+@pytest.mark.parametrize(
+    "extrema",
+    [
+        [60.0, -30.0],  # minimum on the grid
+        [60.0, -30.5],  # minimum between grid levels
+        [-100.0, 33.3],  # maximum after negative saturation
+        [70.3, -40.2, 20.7],  # maximum on a minor loop
+        [80.0, -60.0, 10.0, -20.0],  # minimum on a minor loop
+        [90.0, -90.0, 50.5],
+    ],
+)
+def test_subderivative_interval_at_reversal(ss15, extrema):
+    m, surf = ss15[1], TABLE_3_1[1]
+    s = m.state_from_extrema(extrema)
+    us, prev = s.input, extrema[-2]
+    lo, hi = m.slopes(s).interval
+    # one-sided finite-difference slopes just after the reversal lie in [lo, hi]: continuing
+    # in the direction of the last leg follows the branch (the steep end), reversing starts on
+    # the diagonal (the kappa end)
+    y0 = m.readout(s)
+    for h in (1e-2, 1e-3):
+        up = (m.simulate([us + h], s).output[0] - y0) / h
+        down = (y0 - m.simulate([us - h], s).output[0]) / h
+        for fd in (up, down):
+            assert lo - 1e-6 <= fd <= hi + 1e-6
+        at_max = us > prev
+        assert (up if at_max else down) == pytest.approx(hi, rel=1e-4)
+        assert (down if at_max else up) == pytest.approx(lo, rel=1e-4)
+    assert hi - lo > 0.05 * lo  # a real interval, not a point
+    # the ends against Appendix A (Eq A.38 with lambda = 0 and 1, i.e. A.27 and A.13 at the
+    # reversal) computed from the surface itself, within the error of the h = 1 V grid: the
+    # diagonal half-cell (area h^2 / 2) holds v as well as kappa, so the table's reversal slope
+    # is off by about 2 (v h^2 / 2) / h = h max|v|
+    k_end, branch_end = _appendix_a_interval(surf, us, prev)
+    a, b = np.meshgrid(np.linspace(-100, 100, 201), np.linspace(-100, 100, 201), indexing="ij")
+    grid_error = 1.0 * float(np.max(np.abs(surf.weight_density(a, np.minimum(a, b)))))
+    assert abs(lo - k_end) <= grid_error
+    assert abs(hi - branch_end) <= grid_error
+    assert grid_error < 0.05 * (branch_end - k_end)  # the check separates the two ends
 
 
 def test_neutral_state_has_diagonal_slope_both_ways(ss15):
@@ -279,6 +332,26 @@ def test_wrong_shapes_and_dtypes(ss15):
         m.simulate(np.zeros(3), t=np.zeros(4))
     # integer input is converted
     assert len(m.simulate(np.array([1, 2, 3]))) == 3
+    assert len(m.simulate(np.array([1, 2, 3], dtype=np.uint8))) == 3
+    for bad in (
+        np.array([1.0 + 0j, 2.0]),
+        np.array(["1", "2"]),
+        np.array([True, False]),
+        np.array([1.0, None]),
+    ):
+        with pytest.raises(ValueError, match=rf"u: .*dtype {bad.dtype}"):
+            m.simulate(bad)
+        with pytest.raises(ValueError, match=rf"u: .*dtype {bad.dtype}"):
+            m.simulate_batch(np.stack([bad, bad]))
+    with pytest.raises(ValueError, match="t: .*dtype complex128"):
+        m.simulate([1.0, 2.0], t=np.array([0.0, 1.0 + 0j]))
+    with pytest.raises(ValueError, match=r"t\[1\] = nan is not finite"):
+        m.simulate([1.0, 2.0], t=[0.0, np.nan])
+    with pytest.raises(ValueError, match=r"strictly increasing.*t\[2\] = 0\.5"):
+        m.simulate([1.0, 2.0, 3.0], t=[0.0, 1.0, 0.5])
+    with pytest.raises(ValueError, match=r"strictly increasing.*t\[1\]"):
+        m.simulate([1.0, 2.0], t=[0.0, 0.0])
+    assert m.simulate([1.0, 2.0], t=[0.0, 0.5]).time.tolist() == [0.0, 0.5]
 
 
 def test_state_validation_errors():
@@ -318,6 +391,58 @@ def test_batch_equals_sequential_and_thread_counts_agree(ss15):
         assert f1[r] == res.final_state
 
 
+def test_batch_broadcasts_one_input_over_many_initial_states(ss15):
+    m = ss15[2]
+    u = random_walk(2000, 3, -100, 100, 3.0)
+    states = [m.anhysteretic_state(), m.neutral_state(40.0), m.state_from_extrema([70, -30])]
+    for uu in (u[None, :], u):  # one row, or a 1-D input, with three states
+        Y, finals = m.simulate_batch(uu, states, threads=2)
+        assert Y.shape == (3, u.size) and len(finals) == 3
+        for r, st in enumerate(states):
+            res = m.simulate(u, st)
+            np.testing.assert_array_equal(Y[r], res.output)
+            assert finals[r] == res.final_state
+    # a 1-D input with one (or the default) state is still not a batch
+    with pytest.raises(ValueError, match="2-D"):
+        m.simulate_batch(u, states[0])
+    with pytest.raises(ValueError, match="at least one"):
+        m.simulate_batch(u[None, :], [])
+
+
+def test_simulate_batch_releases_the_gil(ss15):
+    import threading
+    import time
+
+    m = ss15[1]
+    n = 1_500_000
+    U = np.tile(np.where(np.arange(n) % 2, 1.0, -1.0) * np.linspace(100.0, 0.0, n), (4, 1))
+    count = [0]
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            count[0] += 1
+
+    th = threading.Thread(target=spin, daemon=True)
+    th.start()
+    try:
+        time.sleep(0.05)
+        c0, t0 = count[0], time.perf_counter()
+        time.sleep(0.2)  # the rate of the counter while this thread does not hold the GIL
+        free_rate = (count[0] - c0) / (time.perf_counter() - t0)
+        c1, t1 = count[0], time.perf_counter()
+        m.simulate_batch(U, threads=1)
+        busy = time.perf_counter() - t1
+        during = count[0] - c1
+    finally:
+        stop.set()
+        th.join()
+    assert busy > 0.05
+    # with the GIL held the counter only runs in the few switch intervals around the call
+    # (measured: about 1 % of the free rate); released, it runs throughout (about 50 %)
+    assert during > 0.15 * free_rate * busy
+
+
 def test_batch_error_names_row(ss15):
     m = ss15[1]
     U = np.zeros((3, 5))
@@ -337,6 +462,49 @@ def test_save_load_exact(tmp_path, ss15):
     assert m2 == m and m2.name == m.name and m2.metadata == m.metadata
     u = random_walk(5000, 1, -100, 100, 4.0)
     np.testing.assert_array_equal(m.simulate(u).output, m2.simulate(u).output)
+
+
+def test_save_is_atomic_and_keeps_the_old_file_on_bad_metadata(tmp_path, ss15):
+    p = tmp_path / "m.npz"
+    ss15[1].save(p)
+    before = p.read_bytes()
+    bad = PreisachModel(ss15[2].table, metadata={"when": object()})
+    with pytest.raises(TypeError, match=r"m\.npz.*metadata.*JSON"):
+        bad.save(p)
+    assert p.read_bytes() == before  # the existing model survives
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["m.npz"]  # no temporary file left
+    assert PreisachModel.load(p) == ss15[1]
+
+
+def test_load_names_the_file_of_empty_truncated_and_incomplete_models(tmp_path, ss15):
+    good = tmp_path / "good.npz"
+    ss15[1].save(good)
+    data = good.read_bytes()
+    cases = {
+        "empty.npz": b"",  # EOFError in numpy
+        "truncated.npz": data[:300],  # zipfile.BadZipFile
+        "damaged.npz": data[:400] + bytes(200) + data[600:],  # a member is corrupt
+    }
+    for name, content in cases.items():
+        (tmp_path / name).write_bytes(content)
+    d = dict(np.load(good))
+    del d["version"]
+    np.savez(tmp_path / "noversion.npz", **d)  # KeyError in numpy
+    del d["everett"]
+    np.savez(tmp_path / "nofields.npz", **d)
+    np.save(tmp_path / "array.npy", np.zeros(3))
+    expected = {
+        "empty.npz": "empty",
+        "truncated.npz": "not a readable",
+        "damaged.npz": "damaged",
+        "noversion.npz": "missing 'version'",
+        "nofields.npz": "missing 'version', 'everett'",
+        "array.npy": "not a preisach model",
+    }
+    for name, what in expected.items():
+        with pytest.raises(ValueError, match=name.replace(".", r"\.")) as exc:
+            PreisachModel.load(tmp_path / name)
+        assert what in str(exc.value), (name, str(exc.value))
 
 
 def test_load_rejects_other_files(tmp_path):

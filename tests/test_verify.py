@@ -58,6 +58,28 @@ def test_verify_several_experiments_names_and_plot(model):
         verify(model, [])
 
 
+def test_verify_counts_and_warns_about_inputs_outside_the_model_range(model):
+    from preisach.errors import PreisachWarning
+
+    u = np.r_[np.linspace(-100.0, 100.0, 200), np.linspace(100.0, 120.0, 30)[1:], -105.0, 0.0]
+    rec = rec_of(model, u, "overdriven")  # the model clamps the 29 + 1 samples beyond +-100 V
+    inside = rec_of(model, np.linspace(-100.0, 100.0, 50), "inside")
+    with pytest.warns(PreisachWarning, match=r"overdriven: 30 of 231 input samples .*outside"):
+        table = verify(model, [rec, inside])
+    assert [r.n_out_of_range for r in table.rows] == [30, 0]
+    assert table.rows[0].max_error < 1e-12  # clamped consistently with the recording
+    assert table.to_dict()["rows"][0]["n_out_of_range"] == 30
+    lines = table.table().splitlines()
+    assert "clamped" in lines[1]
+    assert lines[3].split()[:3] == ["overdriven", "231", "30"]
+    assert lines[4].split()[:3] == ["inside", "50", "0"]
+    # with a delay only the simulated inputs count
+    with pytest.warns(PreisachWarning, match="29 of 229"):
+        assert verify(model, rec, delay=2).rows[0].n_out_of_range == 29
+    # the counts without the warning
+    assert verify(model, rec, warn_out_of_range=False).rows[0].n_out_of_range == 30
+
+
 def test_initial_state_policies_and_delay(model):
     t = np.arange(6000) * 1e-3
     u = 70.0 * np.sin(2 * np.pi * t) * np.exp(-0.1 * t) + 10.0  # never saturates

@@ -17,14 +17,18 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
+import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
+from .recording import _atomic_write
 from .surface import TABLE_3_1, SqrtSurface
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -49,6 +53,7 @@ BUILTIN_MODELS: dict[str, int] = {"ss15-1hz": 1, "ss15-2hz": 2, "ss15-4hz": 4}
 _FORMAT = "preisach-model"
 _FORMAT_VERSION = 1
 _POLICIES = ("clamp", "raise")
+_FIELDS = ("format", "version", "levels", "everett", "y_min", "info")
 
 
 def state_to_dict(state: State) -> dict[str, Any]:
@@ -175,6 +180,31 @@ def _as_levels(levels: ArrayLike | int, u_min: float, u_max: float) -> NDArray[n
     if not np.all(np.isfinite(lv)) or np.any(np.diff(lv) <= 0):
         raise ValueError("levels: must be finite and strictly increasing")
     return lv
+
+
+def _real_array(name: str, values: ArrayLike) -> NDArray[np.float64]:
+    """``values`` as a C-contiguous float64 array; only real numbers (dtype kind f, i, u)."""
+    arr = np.asarray(values)
+    if arr.dtype.kind not in "fiu":
+        raise ValueError(
+            f"{name}: expected real numbers (float or integer dtype), got dtype {arr.dtype}"
+        )
+    return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+def _check_times(t: NDArray[np.float64]) -> None:
+    """Raise ValueError unless the sample times ``t`` (s) are finite and strictly increasing."""
+    bad = ~np.isfinite(t)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ValueError(f"t: t[{k}] = {t[k]} is not finite")
+    steps = np.diff(t) <= 0
+    if steps.any():
+        k = int(np.argmax(steps)) + 1
+        raise ValueError(
+            f"t: sample times must be strictly increasing, but t[{k}] = {t[k]} s <= "
+            f"t[{k - 1}] = {t[k - 1]} s"
+        )
 
 
 def _lower_grid(levels: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -506,12 +536,15 @@ class PreisachModel:
         Parameters
         ----------
         u : array_like, shape (n,)
-            Input (V).  NaN or inf raises :class:`ValueError` naming the sample index.
+            Input (V), real numbers (float or integer dtype; complex, bool, string and object
+            arrays raise :class:`ValueError`).  NaN or inf raises :class:`ValueError` naming
+            the sample index.
         state : State, optional
             Initial boundary; default the anhysteretic state.  The first sample moves the
             input from ``state.input`` to ``u[0]``.
         t : array_like, optional
-            Sample times (s); default ``arange(n) * sample_time``.
+            Sample times (s), finite and strictly increasing (:class:`ValueError` names the
+            first bad index); default ``arange(n) * sample_time``.
         sample_time : float
             Sampling period (s) used when ``t`` is not given.
         out_of_range : {"clamp", "raise"}, optional
@@ -523,15 +556,16 @@ class PreisachModel:
 
         """
         pol = self._policy(out_of_range)
-        uu = np.ascontiguousarray(u, dtype=float)
+        uu = _real_array("u", u)
         if uu.ndim != 1:
             raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
         s0 = self.anhysteretic_state() if state is None else state
         tt = None
         if t is not None:
-            tt = np.asarray(t, dtype=float)
+            tt = _real_array("t", t)
             if tt.shape != uu.shape:
                 raise ValueError(f"t: shape {tt.shape} does not match u {uu.shape}")
+            _check_times(tt)
         if not sample_time > 0:
             raise ValueError(f"sample_time: must be positive, got {sample_time}")
         y, final = _core.simulate(self._table, uu, s0, pol)
@@ -549,10 +583,13 @@ class PreisachModel:
 
         Parameters
         ----------
-        u : array_like, shape (runs, n)
-            One input (V) per row.
+        u : array_like, shape (runs, n) or (n,)
+            One input (V) per row (real numbers, as for :meth:`simulate`).  A single row
+            (shape ``(1, n)``, or a 1-D input given with a sequence of states) is broadcast:
+            it is run once from each of the ``states``, so ``runs = len(states)``.
         states : State or sequence of State, optional
-            One initial state for all rows, or one per row; default anhysteretic.
+            One initial state for all rows, one per row, or several for a single input row
+            (see ``u``); default anhysteretic.
         threads : int
             Worker threads; 0 uses every core.
         out_of_range : {"clamp", "raise"}, optional
@@ -561,19 +598,44 @@ class PreisachModel:
         Returns
         -------
         y : ndarray, shape (runs, n)
-            Outputs (V).
+            Outputs (V); row ``r`` equals ``simulate(u[r], states[r]).output``.
         final_states : list of State
 
+        Raises
+        ------
+        ValueError
+            On inputs that are not real numbers, of the wrong shape, non-finite (naming the
+            row and sample) or a number of states that is neither 1 nor the number of rows.
+
         """
-        uu = np.ascontiguousarray(u, dtype=float)
-        if uu.ndim != 2:
-            raise ValueError(f"u: expected a 2-D array (runs, samples), got shape {uu.shape}")
+        uu = _real_array("u", u)
         if states is None:
             st = [self.anhysteretic_state()]
         elif isinstance(states, State):
             st = [states]
         else:
             st = list(states)
+            if not st:
+                raise ValueError("states: need at least one initial state")
+            bad = [k for k, s in enumerate(st) if not isinstance(s, State)]
+            if bad:
+                raise TypeError(
+                    f"states[{bad[0]}]: expected a preisach State, got {type(st[bad[0]]).__name__}"
+                )
+        if uu.ndim == 1 and states is not None and not isinstance(states, State):
+            uu = uu[None, :]  # one input, many initial states
+        if uu.ndim != 2:
+            raise ValueError(
+                f"u: expected a 2-D array (runs, samples), or a 1-D input with a sequence of "
+                f"states, got shape {uu.shape}"
+            )
+        if uu.shape[0] == 1 and len(st) > 1:
+            uu = np.ascontiguousarray(np.broadcast_to(uu, (len(st), uu.shape[1])))
+        elif len(st) not in (1, uu.shape[0]):
+            raise ValueError(
+                f"states: need one state or one per input row: got {len(st)} states for "
+                f"{uu.shape[0]} rows"
+            )
         if threads < 0:
             raise ValueError(f"threads: must be >= 0, got {threads}")
         y, finals = _core.simulate_batch(self._table, uu, st, self._policy(out_of_range), threads)
@@ -581,18 +643,35 @@ class PreisachModel:
 
     # ------------------------------------------------------------------ persistence
     def save(self, path: PathLike) -> None:
-        """Write the model to an ``.npz`` file (versioned format, exact round trip)."""
+        """Write the model to an ``.npz`` file (versioned format, exact round trip).
+
+        The file is written to a temporary file in the same folder and renamed over ``path``,
+        so an existing file is replaced only by a complete model.
+
+        Raises
+        ------
+        TypeError
+            If :attr:`metadata` holds a value that is not JSON-serialisable (``path`` is not
+            touched).
+
+        """
         meta = {"name": self.name, "metadata": self.metadata, "out_of_range": self.out_of_range}
-        with open(path, "wb") as f:
-            np.savez(
-                f,
-                format=np.array(_FORMAT),
-                version=np.array(_FORMAT_VERSION),
-                levels=self.levels,
-                everett=self.everett_values,
-                y_min=np.array(self.y_min),
-                info=np.array(json.dumps(meta)),
-            )
+        try:
+            info = json.dumps(meta)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(
+                f"{os.fspath(path)}: cannot save the model: metadata is not JSON-serialisable "
+                f"({exc})"
+            ) from exc
+        arrays: dict[str, Any] = {
+            "format": np.array(_FORMAT),
+            "version": np.array(_FORMAT_VERSION),
+            "levels": self.levels,
+            "everett": self.everett_values,
+            "y_min": np.array(self.y_min),
+            "info": np.array(info),
+        }
+        _atomic_write(Path(os.fspath(path)), lambda f: np.savez(f, **arrays), binary=True)
 
     @classmethod
     def load(cls, path: PathLike) -> PreisachModel:
@@ -601,31 +680,68 @@ class PreisachModel:
         Raises
         ------
         ValueError
-            If the file is not a preisach model or its format version is newer than this
-            package understands.
+            Naming the file: if it cannot be read, is empty, truncated or damaged, is not a
+            preisach model, misses fields, or its format version is newer than this package
+            understands.
 
         """
+        p = os.fspath(path)
         try:
-            data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise ValueError(f"{os.fspath(path)}: not a readable model file ({exc})") from exc
-        with data:
+            f = open(path, "rb")  # opened here: np.load leaks its handle on a bad zip file
+        except OSError as exc:
+            raise ValueError(f"{p}: not a readable model file ({exc})") from exc
+        with f:
+            try:
+                data = np.load(f, allow_pickle=False)
+            except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+                what = "the file is empty" if isinstance(exc, EOFError) else str(exc)
+                raise ValueError(f"{p}: not a readable model file ({what})") from exc
+            if not hasattr(data, "files"):  # a bare .npy array
+                raise ValueError(f"{p}: not a preisach model file (a single array, not an archive)")
+            with data:
+                levels, everett, y_min, meta = cls._read_fields(p, data)
+        try:
+            table = _core.EverettTable(levels, everett, y_min)
+            return cls(
+                table,
+                name=str(meta.get("name", "")),
+                metadata=meta.get("metadata", {}),
+                out_of_range=meta.get("out_of_range", "clamp"),
+            )
+        except (ValueError, TypeError) as exc:
+            raise ValueError(f"{p}: damaged model file ({exc})") from exc
+
+    @staticmethod
+    def _read_fields(
+        p: str, data: Any
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, dict[str, Any]]:
+        """Levels, Everett values, y_min and info of an open model archive ``data`` (file p)."""
+        try:
             if "format" not in data.files or str(data["format"]) != _FORMAT:
-                raise ValueError(f"{os.fspath(path)}: not a preisach model file")
+                raise ValueError(f"{p}: not a preisach model file")
+            missing = [k for k in _FIELDS if k not in data.files]
+            if missing:
+                raise ValueError(
+                    f"{p}: incomplete model file: missing {', '.join(map(repr, missing))}"
+                )
             version = int(data["version"])
             if version > _FORMAT_VERSION:
                 raise ValueError(
-                    f"{os.fspath(path)}: model format version {version} is newer than this "
+                    f"{p}: model format version {version} is newer than this "
                     f"package supports ({_FORMAT_VERSION}); upgrade preisach"
                 )
-            table = _core.EverettTable(data["levels"], data["everett"], float(data["y_min"]))
+            levels, everett = data["levels"], data["everett"]
+            y_min = float(data["y_min"])
             meta = json.loads(str(data["info"]))
-        return cls(
-            table,
-            name=meta.get("name", ""),
-            metadata=meta.get("metadata", {}),
-            out_of_range=meta.get("out_of_range", "clamp"),
-        )
+            if not isinstance(meta, dict):
+                raise ValueError(f"{p}: damaged model file: 'info' is not a JSON object")
+        except ValueError as exc:
+            if str(exc).startswith(p):
+                raise
+            raise ValueError(f"{p}: damaged model file ({exc})") from exc
+        except (KeyError, EOFError, zipfile.BadZipFile, zlib.error, OSError) as exc:
+            raise ValueError(f"{p}: damaged or truncated model file ({exc!r})") from exc
+        return levels, everett, y_min, meta
 
     def __getstate__(self) -> dict[str, Any]:
         return {

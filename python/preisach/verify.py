@@ -33,6 +33,7 @@ their first sample.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -40,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .errors import PreisachWarning
 from .identify.lsq import InitialState, burn_in_end, check_policy, initial_state_for
 from .model import PreisachModel
 
@@ -204,6 +206,9 @@ class VerificationRow:
         Range (V) the percentages refer to.
     exact_state : bool
         Whether the model's state was exact on the scored samples.
+    n_out_of_range : int
+        Simulated input samples outside the model's input range ``[u_min, u_max]``; the
+        model clamped them to the range (see :func:`verify`).
 
     """
 
@@ -215,6 +220,7 @@ class VerificationRow:
     mean_error: float
     output_range: float
     exact_state: bool = True
+    n_out_of_range: int = 0
 
     @property
     def max_pct(self) -> float:
@@ -239,6 +245,7 @@ class VerificationRow:
             "max_pct": self.max_pct,
             "rms_pct": self.rms_pct,
             "exact_state": self.exact_state,
+            "n_out_of_range": self.n_out_of_range,
         }
 
 
@@ -265,18 +272,22 @@ class VerificationTable:
         return max(r.max_pct for r in self.rows)
 
     def table(self) -> str:
-        """Format the error table as text (``mean`` is the bias, model - measurement)."""
+        """Format the error table as text.
+
+        ``mean`` is the bias (model - measurement); ``clamped`` counts the input samples
+        outside the model's input range (clamped to it by the simulation).
+        """
         head = (
-            f"{'experiment':<24} {'samples':>8} {'max (V)':>10} {'rms (V)':>10} "
+            f"{'experiment':<24} {'samples':>8} {'clamped':>8} {'max (V)':>10} {'rms (V)':>10} "
             f"{'mean (V)':>10} {'range (V)':>10} {'max %':>8} {'rms %':>8}"
         )
         lines = [f"verification of {self.model_name or 'model'}", head, "-" * len(head)]
         for r in self.rows:
             flag = "" if r.exact_state else "  (state not exact: offset may be biased)"
             lines.append(
-                f"{r.experiment[:24]:<24} {r.n_samples:>8d} {r.max_error:>10.4g} "
-                f"{r.rms_error:>10.4g} {r.mean_error:>10.3g} {r.output_range:>10.4g} "
-                f"{r.max_pct:>8.3f} {r.rms_pct:>8.3f}{flag}"
+                f"{r.experiment[:24]:<24} {r.n_samples:>8d} {r.n_out_of_range:>8d} "
+                f"{r.max_error:>10.4g} {r.rms_error:>10.4g} {r.mean_error:>10.3g} "
+                f"{r.output_range:>10.4g} {r.max_pct:>8.3f} {r.rms_pct:>8.3f}{flag}"
             )
         return "\n".join(lines)
 
@@ -302,8 +313,14 @@ def verify(
     delay: int = 0,
     output_range: float | None = None,
     names: Sequence[str] | None = None,
+    warn_out_of_range: bool = True,
 ) -> VerificationTable:
     """Simulate every recording's input through ``model`` and tabulate the errors.
+
+    Input samples outside the model's input range ``[u_min, u_max]`` are clamped to it by the
+    simulation (with the model's default ``out_of_range="clamp"``); their number is reported
+    per experiment (:attr:`VerificationRow.n_out_of_range`, the ``clamped`` column) and a
+    :class:`~preisach.errors.PreisachWarning` names each recording that has any.
 
     Parameters
     ----------
@@ -319,11 +336,19 @@ def verify(
         Range (V) for the percentages; default each recording's measured output range.
     names : sequence of str, optional
         Experiment names; default the recordings' ``experiment`` metadata.
+    warn_out_of_range : bool
+        Warn about recordings with input samples outside the model's range (default); the
+        counts are in the rows either way.
 
     Returns
     -------
     VerificationTable
         Max and RMS error in volts and in percent of the output range, per experiment.
+
+    Warns
+    -----
+    PreisachWarning
+        For each recording with input samples outside ``[model.u_min, model.u_max]``.
 
     """
     recs = [recordings] if hasattr(recordings, "u") else list(recordings)
@@ -335,9 +360,21 @@ def verify(
     rows: list[VerificationRow] = []
     preds: list[Prediction] = []
     for name, rec in zip(nm, recs):
-        p = predict(model, rec, initial_state=initial_state, delay=delay)
+        try:
+            p = predict(model, rec, initial_state=initial_state, delay=delay)
+        except ValueError as exc:
+            raise ValueError(f"{name}: {exc}") from exc
         e = p.error
         rng = _range(np.asarray(rec.y, dtype=float), output_range)
+        n_out = int(np.count_nonzero((p.u < model.u_min) | (p.u > model.u_max)))
+        if n_out and warn_out_of_range:
+            warnings.warn(
+                f"{name}: {n_out} of {p.u.size} input samples lie outside the model's input "
+                f"range [{model.u_min:g}, {model.u_max:g}] V (from {float(np.min(p.u)):g} to "
+                f"{float(np.max(p.u)):g} V) and were clamped to it",
+                PreisachWarning,
+                stacklevel=2,
+            )
         rows.append(
             VerificationRow(
                 name,
@@ -348,6 +385,7 @@ def verify(
                 float(np.mean(e)),
                 rng,
                 p.exact_state,
+                n_out,
             )
         )
         preds.append(p)

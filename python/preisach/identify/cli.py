@@ -16,12 +16,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
 __all__ = ["add_parser"]
 
 _POLICIES = ("burn-in", "negative", "positive", "anhysteretic")
+
+#: Largest ``--levels`` for fod/surface: the resolution of the built-in models (1 V steps on
+#: +-100 V).  The FOD grid costs O(levels^2) memory and more time (401 levels: ~10 s, 540 MB).
+MAX_FOD_LEVELS = 201
 
 
 def _load_recordings(paths: list[str]) -> list[Any]:
@@ -30,6 +36,8 @@ def _load_recordings(paths: list[str]) -> list[Any]:
     recs = []
     for p in paths:
         rec = Recording.load(p)
+        if len(rec.u) < 2:
+            raise ValueError(f"{p}: a recording needs at least 2 samples, got {len(rec.u)}")
         if "experiment" not in rec.metadata or not str(rec.metadata["experiment"]):
             rec.metadata["experiment"] = Path(p).stem
         recs.append(rec)
@@ -53,6 +61,14 @@ def _identify(args: argparse.Namespace) -> int:
 
     if args.levels is not None and args.levels < 3:
         raise ValueError(f"--levels: need at least 3 levels, got {args.levels}")
+    if args.method in ("fod", "surface") and args.levels is not None:
+        if args.levels > MAX_FOD_LEVELS:
+            raise ValueError(
+                f"--levels: at most {MAX_FOD_LEVELS} levels for --method {args.method} (the "
+                f"built-in models' resolution; the FOD grid grows as levels^2), got {args.levels}"
+            )
+    if args.y_min_source is not None and args.method != "surface":
+        raise ValueError("--y-min-source applies to --method surface only")
     if args.delay < 0:
         raise ValueError(f"--delay: need a number of samples >= 0, got {args.delay}")
     recs = _load_recordings(args.recordings)
@@ -62,7 +78,9 @@ def _identify(args: argparse.Namespace) -> int:
     elif args.method == "surface":
         if args.project:
             raise ValueError("--project applies to --method fod only")
-        model, report = identify_surface(recs, args.levels, **common)
+        model, report = identify_surface(
+            recs, args.levels, y_min_source=args.y_min_source or "column_mean", **common
+        )
     else:
         if args.project:
             raise ValueError("--project applies to --method fod only (lsq imposes mu >= 0 itself)")
@@ -91,13 +109,17 @@ def _verify(args: argparse.Namespace) -> int:
     if not model.name:
         model.name = Path(args.model).stem
     recs = _load_recordings(args.recordings)
-    table = verify(
-        model,
-        recs,
-        initial_state=args.initial_state,
-        delay=args.delay,
-        output_range=args.output_range,
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        table = verify(
+            model,
+            recs,
+            initial_state=args.initial_state,
+            delay=args.delay,
+            output_range=args.output_range,
+        )
+    for w in caught:  # e.g. inputs outside the model's range (the "clamped" column)
+        print(f"preisach verify: warning: {w.message}", file=sys.stderr)
     print(table.table())
     result: dict[str, Any] = table.to_dict()
     if args.properties:
@@ -143,12 +165,20 @@ def add_parser(subparsers: Any) -> None:
         default=None,
         metavar="N",
         help="grid levels: FOD grid for fod/surface (default: inferred from the turning "
-        "values), table levels for lsq (default 41)",
+        f"values; at most {MAX_FOD_LEVELS}), table levels for lsq (default 41)",
     )
     p.add_argument(
         "--project",
         action="store_true",
         help="fod: project the table to the nearest one with mu >= 0",
+    )
+    p.add_argument(
+        "--y-min-source",
+        choices=("column_mean", "corner"),
+        default=None,
+        help="surface: y_min of Eq 3.1 from the measured corner y(u_hat, -u_hat) ('corner', "
+        "as the thesis states) or the mean of every FOD curve's end point ('column_mean', the "
+        "default: the same output measured n times, less noise)",
     )
     p.add_argument("--folds", type=int, default=5, help="lsq: cross-validation folds (default 5)")
     p.add_argument(

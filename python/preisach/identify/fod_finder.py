@@ -17,7 +17,21 @@ Algorithm
    when it reverses by more than ``reversal_tol`` volts from its running extreme (a "zig-zag"
    filter).  Smaller wiggles (noise, dither) do not end a monotone leg.  The extreme of a leg is
    its highest (lowest) sample; among equal samples the last one, so that a hold at a turning
-   value ends where the next leg starts.
+   value ends where the next leg starts.  The default ``reversal_tol`` grows with the input
+   noise: it is the larger of 0.5 % of the input range and ``NOISE_TOL_FACTOR`` (10) times
+   the noise estimate ``sigma_u = 1.4826 MAD(diff(u, 2)) / sqrt(6)`` (V; second differences
+   vanish on ramps and smooth legs, so only the noise is left), the noise term capped at 5 % of
+   the range.  The default ``saturation_tol`` (1 % of the range) grows the same way, since
+   noise also lowers the recorded ``u_min``.
+
+   **Turning values.**  The highest sample of a noisy leg overstates the turning value (it is
+   the largest of the noise samples near the top).  When ``sigma_u`` exceeds 0.01 % of the
+   input range, the turning value is instead read from quadratics fitted to the samples on
+   either side of the extreme (up to the farthest within ``reversal_tol`` of it, at least 20
+   and at most 100 per side): the highest point of the lower of the two curves (the apex of a
+   sharp turn, the vertex of a smooth one, the level of a hold), kept between ``reversal_tol``
+   below and ``3 sigma_u`` above the extreme sample.  Otherwise (noise-free input) it is the
+   extreme sample itself.  The turning *sample* (the diagonal node) is always the extreme one.
 2. **Classification.**  Every turning point at the top of a leg (FOD; bottom for FORC) opens a
    candidate curve whose branch runs to the next turning point (or the end of the recording).
    It is a first-order curve when the leg before it starts at saturation: its lowest input is
@@ -69,12 +83,16 @@ Levels
 With ``levels=None`` the grid is inferred: the turning values of the first-order curves and
 the input at the saturation visits that start them are clustered (values closer than
 ``level_tol`` form one cluster); when there are at least three clusters and they all lie within
-``level_tol`` of a regular grid ``a + k h`` (least-squares fit), that grid is used, extended
-over the recording's input range.  Its offset and step are rounded to the coarsest of about
-``h / 10``, ``h / 100``, ``h / 1000`` that still fits within ``level_tol / 2``, so the thesis
-grid comes out as exactly ``-100 + 10 i`` even from dithered data.  Otherwise 21 equally spaced
-levels over ``[u_min, u_max]`` are used; turning points are then usually off the grid and the
-curves are only available as raw curves (:attr:`FODData.raw_curves`).
+``level_tol`` of a regular grid ``a + k h`` (least-squares fit; the grid positions ``k`` come
+from the gaps between neighbouring clusters), that grid is used, extended over the recording's
+input range and clipped to it: no level outside ``[u_min, u_max]`` widened by three times the
+input noise estimate ``sigma_u`` (noise can leave the sample at a turning level just below it).
+Its offset and step are rounded to the coarsest of about ``h``, ``h / 10``, ``h / 100``,
+``h / 1000`` that moves the fitted grid by at most ``level_tol / 2`` and still fits every
+cluster within ``level_tol``, so the thesis grid comes out as exactly ``-100 + 10 i`` even from
+dithered data.  Otherwise 21 equally spaced levels over ``[u_min, u_max]`` are used; turning
+points are then usually off the grid and the curves are only available as raw curves
+(:attr:`FODData.raw_curves`).
 """
 
 from __future__ import annotations
@@ -91,6 +109,20 @@ __all__ = ["CurveRecord", "FODData", "find_fod_curves", "find_forc_curves"]
 
 #: Number of levels used when no regular grid can be inferred from the turning values.
 DEFAULT_N_LEVELS = 21
+
+#: Default ``reversal_tol`` and ``saturation_tol`` are at least this many times the estimated
+#: input noise (V) ...
+NOISE_TOL_FACTOR = 10.0
+
+#: ... but the noise term is at most this fraction of the input range.
+MAX_NOISE_TOL_FRACTION = 0.05
+
+#: Input noise below this fraction of the input range is negligible: turning values are then
+#: the extreme samples themselves.
+NOISE_NEGLIGIBLE = 1e-4
+
+#: At least / at most this many samples per side enter the local fit of an extreme.
+_FIT_MIN, _FIT_MAX = 20, 100
 
 
 # ------------------------------------------------------------------------------------------
@@ -115,6 +147,8 @@ class CurveRecord:
         Times (s) of ``start``, ``turn`` and ``stop``.
     turning_value : float
         Input at the turning point (V): ``alpha`` of an FOD, the reversal ``beta`` of a FORC.
+        The extreme sample ``u[turn]``, or for a noisy input the estimate from the samples
+        around it (see "Turning values" in the module docstring).
     level : int or None
         Index into :attr:`FODData.levels` the turning value was snapped to, ``None`` when the
         curve is not on the grid (or not a first-order curve).
@@ -193,6 +227,9 @@ class FODData:
         How ``levels`` were obtained ("given", "regular grid inferred ...", "fallback ...").
     n_samples : int
         Number of samples in the recording.
+    input_noise : float
+        Estimated standard deviation (V) of the noise on the input, ``1.4826 MAD(diff(u, 2)) /
+        sqrt(6)``; 0 for a noise-free piecewise-linear input.
 
     """
 
@@ -209,6 +246,7 @@ class FODData:
     level_tol: float
     levels_source: str
     n_samples: int
+    input_noise: float = 0.0
 
     @property
     def used_curves(self) -> list[CurveRecord]:
@@ -263,7 +301,8 @@ class FODData:
             f"{kind} curves in a recording of {self.n_samples} samples",
             f"  input range {_v(self.u_min)} .. {_v(self.u_max)}; {sat} saturation: {sat_line}",
             f"  tolerances: saturation {_v(self.saturation_tol)}, reversal "
-            f"{_v(self.reversal_tol)}, level {_v(self.level_tol)}",
+            f"{_v(self.reversal_tol)}, level {_v(self.level_tol)}; input noise estimate "
+            f"{_v(self.input_noise)}",
             f"  levels: {n} from {_v(float(self.levels[0]))} to {_v(float(self.levels[-1]))}, "
             f"{spacing_txt} ({self.levels_source})",
             f"  nodes measured: {measured} of {n_nodes}; repeated (count >= 2): {repeated}; "
@@ -318,10 +357,12 @@ def find_fod_curves(
         Negative and positive saturation (V); default: the recording's input range.
     saturation_tol : float, optional
         A leg starts at negative saturation when its lowest input is ``<= u_min +
-        saturation_tol`` (V).  Default: 1 % of ``u_max - u_min``.
+        saturation_tol`` (V).  Default: 1 % of ``u_max - u_min``, or 10 times the estimated
+        input noise when that is larger (at most 5 % of ``u_max - u_min``).
     reversal_tol : float, optional
         The input must reverse by more than this (V) for a turning point (hysteresis of the
-        turning-point detector).  Default: 0.5 % of ``u_max - u_min``.
+        turning-point detector).  Default: 0.5 % of ``u_max - u_min``, or 10 times the
+        estimated input noise when that is larger (at most 5 % of ``u_max - u_min``).
     level_tol : float, optional
         A turning value (or the end of a branch) within this distance (V) of a grid level is
         snapped to it; must be below half the smallest level spacing.  Default: the smaller of
@@ -478,6 +519,55 @@ def _tol(name: str, value: float | None, default: float, allow_zero: bool) -> fl
     return v
 
 
+def _input_noise(u: NDArray[np.float64]) -> float:
+    """Robust estimate (V) of the standard deviation of white noise on the input.
+
+    ``1.4826 MAD(diff(u, 2)) / sqrt(6)``: second differences vanish on ramps (and are small on
+    smooth legs), while white noise of standard deviation ``sigma`` gives them ``sqrt(6) sigma``.
+    """
+    if u.size < 3:
+        return 0.0
+    d2 = np.diff(u, 2)
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return 1.4826 * mad / math.sqrt(6.0)
+
+
+def _robust_extreme(
+    s: NDArray[np.float64], k: int, left: int, right: int, kind: int, band: float, noise: float
+) -> float:
+    """Estimate the turning value (working frame) at the extreme sample ``k`` of a noisy input.
+
+    ``kind`` is +1 at a top, -1 at a bottom; ``left`` and ``right`` bound the two legs (the
+    neighbouring turning points).  A quadratic is fitted to the samples on each side, up to the
+    farthest one within ``band`` (V) of the extreme (at least ``_FIT_MIN``, at most
+    ``_FIT_MAX`` per side); the turning value is the highest point of the lower of the two
+    curves between the window ends (the apex of a sharp turn, the vertex of a smooth one, the
+    level of a hold), kept within ``[extreme - band, extreme + 3 noise]`` (noise can leave the
+    sample at the turning point below the turning value).
+    """
+    g = kind * s  # the extreme is a maximum of g
+    peak = float(g[k])
+
+    def side(seg: NDArray[np.float64]) -> NDArray[np.float64]:
+        within = np.nonzero(seg >= peak - band)[0]
+        n = int(within[-1]) + 1 if within.size else 1
+        return seg[: min(max(n, min(_FIT_MIN, seg.size)), _FIT_MAX)]
+
+    gl = side(g[max(left, k - _FIT_MAX) : k + 1][::-1])  # from k backwards
+    gr = side(g[k : min(right, k + _FIT_MAX) + 1])  # from k forwards
+    fits = []
+    for seg, sgn in ((gl, -1.0), (gr, 1.0)):
+        if seg.size >= 4:
+            x = sgn * np.arange(seg.size, dtype=float) / seg.size  # scaled for conditioning
+            fits.append((np.polyfit(x, seg, 2), float(seg.size)))
+    if not fits:
+        return float(s[k])
+    x = np.linspace(-(gl.size - 1), gr.size - 1, 4 * (gl.size + gr.size) + 1)
+    curves = [np.polyval(c, x / n) for c, n in fits]
+    est = float(np.max(np.minimum.reduce(curves)))
+    return kind * min(max(est, peak - band), peak + 3.0 * noise)
+
+
 def _turning_points(s: NDArray[np.float64], tol: float) -> tuple[list[int], list[int], int]:
     """Zig-zag turning points of ``s`` with hysteresis ``tol``.
 
@@ -625,8 +715,12 @@ def _infer_levels(
     s_min: float,
     s_max: float,
     level_tol: float,
+    margin: float = 0.0,
 ) -> NDArray[np.float64] | None:
-    """Regular grid through the clustered ``values`` (working frame), or None."""
+    """Regular grid through the clustered ``values`` (working frame), or None.
+
+    The grid is clipped to ``[s_min - margin, s_max + margin]``.
+    """
     if values.size < 3:
         return None
     v = np.sort(values)
@@ -634,26 +728,41 @@ def _infer_levels(
     centres = np.array([np.median(c) for c in np.split(v, cut)])
     if centres.size < 3:
         return None
-    a, h = float(centres[0]), float(np.min(np.diff(centres)))
-    for _ in range(3):  # integer grid positions, then a least-squares fit of a + k h; refine
-        k = np.round((centres - a) / h)
+    # integer grid positions from the gaps between neighbours (in units of the smallest gap,
+    # so that errors of noisy centres do not accumulate), then a least-squares fit of a + k h;
+    # refine
+    gaps = np.diff(centres)
+    k = np.concatenate(([0.0], np.cumsum(np.round(gaps / float(np.min(gaps))))))
+    for _ in range(3):
         A = np.column_stack((np.ones_like(k), k))
         (a, h), *_ = np.linalg.lstsq(A, centres, rcond=None)
         a, h = float(a), float(h)
         if not h > 2.0 * level_tol:
             return None
-    k = np.round((centres - a) / h)
+        k = np.round((centres - a) / h)
     if np.max(np.abs(centres - (a + k * h))) > level_tol:
         return None
     e_top = int(math.floor(math.log10(h))) - 1
-    for dec in range(-e_top, -e_top + 3):  # round to h/10 .. h/1000, coarsest that still fits
+    for dec in range(-e_top - 1, -e_top + 3):  # round to ~h .. h/1000, coarsest that fits:
+        # within level_tol / 2 of the fitted grid (which averages the noise of the centres)
+        # and within level_tol of every centre
         a_r, h_r = float(np.round(a, dec)), float(np.round(h, dec))
-        if h_r > 0 and np.max(np.abs(centres - (a_r + k * h_r))) <= 0.5 * level_tol:
+        moved = float(np.max(np.abs((a_r + k * h_r) - (a + k * h))))
+        if (
+            h_r > 0
+            and moved <= 0.5 * level_tol
+            and np.max(np.abs(centres - (a_r + k * h_r))) <= level_tol
+        ):
             a, h = a_r, h_r
             break
     k_lo = min(int(k.min()), int(math.ceil((s_min - level_tol - a) / h)))
     k_hi = max(int(k.max()), int(math.floor((s_max + level_tol - a) / h)))
-    return a + h * np.arange(k_lo, k_hi + 1, dtype=float)
+    grid = a + h * np.arange(k_lo, k_hi + 1, dtype=float)
+    # never beyond the input range, widened by the noise that can hide a level's visit (and by
+    # the round-off of a + k h)
+    eps = margin + 1e-9 * (s_max - s_min)
+    grid = grid[(grid >= s_min - eps) & (grid <= s_max + eps)]
+    return grid if grid.size >= 3 else None
 
 
 def _read_branch(
@@ -708,8 +817,10 @@ def _find(
     if not hi > lo:
         raise ValueError(f"u_max ({hi}) must exceed u_min ({lo}); u must not be constant")
     span = hi - lo
-    sat_tol = _tol("saturation_tol", saturation_tol, 0.01 * span, allow_zero=True)
-    rev_tol = _tol("reversal_tol", reversal_tol, 0.005 * span, allow_zero=False)
+    noise = _input_noise(ua)
+    noise_tol = min(NOISE_TOL_FACTOR * noise, MAX_NOISE_TOL_FRACTION * span)
+    sat_tol = _tol("saturation_tol", saturation_tol, max(0.01 * span, noise_tol), allow_zero=True)
+    rev_tol = _tol("reversal_tol", reversal_tol, max(0.005 * span, noise_tol), allow_zero=False)
     lvl_tol_user = level_tol is not None
     lvl_tol = _tol("level_tol", level_tol, 0.005 * span, allow_zero=True)
 
@@ -720,6 +831,16 @@ def _find(
 
     idx, kind, n_conf = _turning_points(s, rev_tol)
     cands = _classify(s, ta, idx, kind, n_conf, sat_level, rev_tol, fr)
+    # turning values (working frame) robust to input noise, per turning-point sample
+    tv: dict[int, float] = {}
+    if noise > NOISE_NEGLIGIBLE * span:
+        for p, (k, kd) in enumerate(zip(idx, kind)):
+            left = idx[p - 1] if p > 0 else 0
+            right = idx[p + 1] if p + 1 < len(idx) else s.size - 1
+            tv[k] = _robust_extreme(s, k, left, right, kd, rev_tol, noise)
+
+    def value(k: int) -> float:
+        return tv.get(k, float(s[k]))
 
     # ---- levels (working frame, ascending) ----
     if levels is not None:
@@ -734,8 +855,10 @@ def _find(
         source = "given"
     else:
         firsts = [c for c in cands if c.first_order]
-        vals = np.array([s[c.turn] for c in firsts] + [s[c.start] for c in firsts], dtype=float)
-        inferred = _infer_levels(vals, s_min, s_max, lvl_tol)
+        vals = np.array(
+            [value(c.turn) for c in firsts] + [value(c.start) for c in firsts], dtype=float
+        )
+        inferred = _infer_levels(vals, s_min, s_max, lvl_tol, 3.0 * noise)
         if inferred is not None:
             lv = inferred
             source = f"regular grid inferred from {len(firsts)} first-order curves"
@@ -768,11 +891,12 @@ def _find(
         used = False
         n_nodes = 0
         reason = c.reason
+        turn_value = value(k)
         if c.first_order:
-            i = int(np.argmin(np.abs(lv - s[k])))
-            if abs(lv[i] - s[k]) > lvl_tol:
+            i = int(np.argmin(np.abs(lv - turn_value)))
+            if abs(lv[i] - turn_value) > lvl_tol:
                 reason = (
-                    f"{fr.turn_name} {fr.v(s[k])} not on the grid (nearest level "
+                    f"{fr.turn_name} {fr.v(turn_value)} not on the grid (nearest level "
                     f"{fr.v(lv[i])}, level_tol = {_v(lvl_tol)}); kept as a raw curve"
                 )
             else:
@@ -783,7 +907,7 @@ def _find(
                 flat.append(rows * n + cols)
                 obs.append(np.concatenate((vals, [by[0]])))
                 n_nodes = cols.size
-                if abs(s[c.start] - lv[0]) <= lvl_tol:  # saturation visit: node (0, 0)
+                if abs(value(c.start) - lv[0]) <= lvl_tol:  # saturation visit: node (0, 0)
                     flat.append(np.array([0], dtype=np.intp))
                     obs.append(np.array([ya[c.start]]))
                 reason = f"ok, {n_nodes} nodes"
@@ -798,7 +922,7 @@ def _find(
                 t_start=float(ta[c.start]),
                 t_turn=float(ta[k]),
                 t_stop=float(ta[stop]),
-                turning_value=float(ua[k]),
+                turning_value=fr.sign * turn_value + 0.0,
                 level=level,
                 first_order=c.first_order,
                 used=used,
@@ -847,4 +971,5 @@ def _find(
         level_tol=lvl_tol,
         levels_source=source,
         n_samples=int(ta.size),
+        input_noise=noise,
     )

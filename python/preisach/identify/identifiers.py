@@ -423,6 +423,14 @@ def _unique_names(recs: Sequence[Any]) -> list[str]:
     return out
 
 
+def _check_lengths(recs: Sequence[Any], names: Sequence[str]) -> None:
+    """Raise ValueError naming the first recording with fewer than 2 samples."""
+    for nm, r in zip(names, recs):
+        n = int(np.size(r.u))
+        if n < 2:
+            raise ValueError(f"{nm}: a recording needs at least 2 samples, got {n}")
+
+
 def _levels_arg(levels: ArrayLike | int | None, lo: float, hi: float) -> NDArray[np.float64] | None:
     if levels is None:
         return None
@@ -471,6 +479,7 @@ def _merge_fod(parts: list[FODData]) -> FODData:
         level_tol=first.level_tol,
         levels_source=first.levels_source + f" (merged over {len(parts)} recordings)",
         n_samples=sum(p.n_samples for p in parts),
+        input_noise=max(p.input_noise for p in parts),
     )
 
 
@@ -500,6 +509,7 @@ def _fod_data(
         return data, [], [], only
     recs = _recordings(data)
     names = _unique_names(recs)
+    _check_lengths(recs, names)
     lo = min(float(np.min(r.u)) for r in recs)
     hi = max(float(np.max(r.u)) for r in recs)
     lv = _levels_arg(levels, lo, hi)
@@ -567,12 +577,21 @@ def _recording_residuals(
     names: Sequence[str],
     initial_state: InitialState,
     delay: int,
+    state_warnings: bool = True,
 ) -> tuple[list[Residuals], list[str]]:
+    """Residuals of the model on the recordings, and warnings (inexact state, clamped input)."""
     from ..verify import verify
 
     if not recs:
         return [], []
-    table = verify(model, recs, initial_state=initial_state, delay=delay, names=names)
+    table = verify(
+        model,
+        recs,
+        initial_state=initial_state,
+        delay=delay,
+        names=names,
+        warn_out_of_range=False,
+    )
     res = [
         Residuals(r.experiment, r.n_samples, r.max_error, r.rms_error, r.output_range)
         for r in table.rows
@@ -581,7 +600,14 @@ def _recording_residuals(
         f"{r.experiment}: the model's state is not exact on this recording (it never reaches "
         f"u_min or u_max); its residuals include an unknown constant offset"
         for r in table.rows
-        if not r.exact_state
+        if state_warnings and not r.exact_state
+    ]
+    warn += [
+        f"{r.experiment}: {r.n_out_of_range} input samples lie outside the model's input "
+        f"range [{model.u_min:g}, {model.u_max:g}] V; the residuals there are those of the "
+        "clamped input"
+        for r in table.rows
+        if r.n_out_of_range
     ]
     return res, warn
 
@@ -780,6 +806,7 @@ def identify_surface(
     table_levels: ArrayLike | int = 201,
     frequency: float = math.nan,
     refine: bool = True,
+    y_min_source: str = "column_mean",
     name: str = "",
     initial_state: InitialState = "burn-in",
     delay: int = 0,
@@ -804,6 +831,13 @@ def identify_surface(
         Frequency (Hz) of the identification input, stored in the surface.
     refine : bool
         Run the joint refinement of the surface parameters (beyond the thesis).
+    y_min_source : {"column_mean", "corner"}
+        Where the surface's ``y_min`` (V) comes from.  ``"corner"`` is Eq 3.1 as the thesis
+        states it: the single measured corner ``y(u_hat, -u_hat)``.  ``"column_mean"``
+        (default) averages the end points ``y(alpha, u_min)`` of every measured FOD curve,
+        which all measure the same output (every FOD curve ends at negative saturation), so
+        the noise on ``y_min`` drops by about ``sqrt(n)`` for ``n`` curves.  See
+        :func:`~preisach.identify.fit_sqrt_surface`.
     name, initial_state, delay, **finder_options
         As for :func:`identify_fod`.
 
@@ -816,10 +850,15 @@ def identify_surface(
     """
     t0 = time.perf_counter()
     check_policy(initial_state)
+    if y_min_source not in ("column_mean", "corner"):
+        raise ValueError(f"y_min_source: expected 'column_mean' or 'corner', got {y_min_source!r}")
     fd, recs, names, usage = _fod_data(data, levels, finder_options)
-    fit = fit_sqrt_surface(fd.levels, fd.y_grid, frequency=frequency, refine=refine)
+    fit = fit_sqrt_surface(
+        fd.levels, fd.y_grid, frequency=frequency, refine=refine, y_min_source=y_min_source
+    )
     model = PreisachModel.from_surface(fit.surface, table_levels, name=name)
     model.metadata["source"] = "identify_surface"
+    model.metadata["y_min_source"] = y_min_source
     warnings = _fod_warnings(fd) + [f"surface fit: {w}" for w in fit.warnings]
     neg = _negative_cells(model)
     if neg:
@@ -945,7 +984,11 @@ def identify_lsq(
         )
         for u in usage_raw
     ]
-    res, _ = _recording_residuals(model, recs, names, initial_state, details.delay)
+    # lsq reports the inexact-state recordings itself (usage notes)
+    res, w_res = _recording_residuals(
+        model, recs, names, initial_state, details.delay, state_warnings=False
+    )
+    warnings += w_res
     neg = _negative_cells(model)
     report = IdentificationReport(
         "lsq",

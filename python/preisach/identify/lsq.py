@@ -692,6 +692,13 @@ def _solve(
         )
     sse_fit = float(theta @ Gtot @ theta - 2.0 * theta @ btot + prep.yy.sum())
     n_fit = int(prep.count.sum())
+    if n_fit < m + 1:
+        warnings.append(
+            f"only {n_fit} samples were fitted for {m + 1} parameters (cell masses and the "
+            "offset): the fit is underdetermined, so its rms residual says nothing about the "
+            "model (the smoothness penalty decides most of the table); record more samples or "
+            "use fewer levels"
+        )
     w = theta[:-1]
     details = LsqDetails(
         lambdas=lam,
