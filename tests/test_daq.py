@@ -1,6 +1,7 @@
 """The DAQ layer: virtual SS15 rig, trial runner, safety, interrupts, Comedi (replayed)."""
 
 import _thread
+import time
 
 import numpy as np
 import pytest
@@ -65,18 +66,35 @@ def test_safety_clamp_slew_and_ramp_after_abort(model, tmp_path):
     rig = daq.virtual_ss15(model)
     # a 300 V step (clamped to 135 V and slew limited), then NaN at sample 150
     ctl = daq.CallbackController(lambda k, t, y: float("nan") if k == 150 else 300.0, 400)
-    safety = daq.SafetyLimits(slew_rate=10_000.0, ramp_rate=20_000.0)
+    safety = daq.SafetyLimits(slew_rate=20_000.0, ramp_rate=10_000.0)  # 20 and 10 V a sample
     res = daq.run_trial(rig, ctl, tmp_path / "s.csv", sample_time=TS, safety=safety)
     assert res.end_status.startswith(
         "aborted: controller returned a non-finite output at sample 150"
     )
     assert res.final_output == 0.0 and rig.actuator_voltage == pytest.approx(0.0, abs=1e-12)
     rec = Recording.load(tmp_path / "s.csv")
-    assert len(rec) == res.samples + res.ramp_samples == 151 + 7
-    assert np.all(np.abs(np.diff(rec.u)) <= 20.0 + 1e-9)
+    assert len(rec) == res.samples + res.ramp_samples == 151 + 14  # 135 V at 10 V a sample
+    # from the rig's idle output (0 V at the DAC: -0.02 V) at the slew rate, then the clamp
+    np.testing.assert_allclose(rec.u[:7], [*(-0.02 + 20.0 * np.arange(1, 7)), 135.0])
+    assert np.all(np.abs(np.diff(rec.u[:151])) <= 20.0 + 1e-9)
+    # the ramp to 0 V at the ramp rate, slower than the slew rate
+    np.testing.assert_allclose(rec.u[150:], [*(135.0 - 10.0 * np.arange(14)), 0.0])
     assert rec.u.max() == pytest.approx(135.0) and rec.u[-1] == 0.0
     assert rec.metadata["end_reason"].startswith("controller returned a non-finite output")
     np.testing.assert_allclose(np.diff(rec.t), TS)
+
+
+def test_ramp_faster_than_the_slew_limit_is_rejected(model, tmp_path):
+    msg = r"ramp_rate = 20000 V/s exceeds slew_rate = 10000 V/s"
+    with pytest.raises(ValueError, match="^SafetyLimits: " + msg):
+        daq.SafetyLimits(slew_rate=10_000.0, ramp_rate=20_000.0)
+    daq.SafetyLimits(slew_rate=10_000.0, ramp_rate=10_000.0)  # equal is fine
+    # the runner's own limits object (not checked at construction) is checked by run_trial
+    rig = daq.virtual_ss15(model)
+    bare = daq._core.DaqSafety(slew_rate=10_000.0, ramp_rate=20_000.0)
+    with pytest.raises(ValueError, match="^run_trial: safety: " + msg):
+        daq.run_trial(rig, np.zeros(5), tmp_path / "r.csv", sample_time=TS, safety=bare)
+    assert not (tmp_path / "r.csv").exists()
 
 
 def test_out_of_range_reading_aborts(model, tmp_path):
@@ -137,6 +155,68 @@ def test_keyboard_interrupt_requests_a_stop_and_finishes_the_file(model, tmp_pat
     assert len(rec) == res.samples + res.ramp_samples
     np.testing.assert_array_equal(rec.t, np.arange(len(rec)) * TS)
     assert rec.u[-1] == 0.0
+
+
+def test_progress_callback_error_stops_the_worker_and_finishes_the_file(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+    seen = []
+
+    def progress(done, planned):
+        seen.append(done)
+        if done >= 100:
+            raise RuntimeError("progress display broke")
+
+    path = tmp_path / "p.csv"
+    n = 20_000  # 20 s in real time: the error must stop it long before
+    with pytest.raises(RuntimeError, match="progress display broke"):
+        daq.run_trial(
+            rig,
+            np.full(n, 30.0),
+            path,
+            sample_time=TS,
+            realtime=True,
+            safety=daq.SafetyLimits(max_consecutive_missed=-1),  # a shared machine
+            progress=progress,
+            poll=0.01,
+        )
+    # returned only once the worker finished: the output is at 0 V and the file complete
+    assert not rig.busy and rig.actuator_voltage == pytest.approx(0.0, abs=1e-12)
+    rec = Recording.load(path)
+    assert rec.metadata["end_status"] == "interrupted"
+    assert "RuntimeError" in rec.metadata["end_reason"]
+    assert "progress display broke" in rec.metadata["end_reason"]
+    samples, ramp = rec.metadata["samples"], rec.metadata["ramp_samples"]
+    assert seen[-1] <= samples < n and ramp == 60  # 30 V at 500 V/s, 0.5 V a sample
+    assert len(rec) == samples + ramp  # every sample taken is in the file
+    np.testing.assert_allclose(rec.t, np.arange(len(rec)) * TS, atol=1e-12)
+    np.testing.assert_allclose(rec.u[5:samples], 30.0)
+    assert rec.u[-1] == 0.0 and rec.metadata["final_output"] == 0.0
+
+
+def test_total_missed_deadline_budget_aborts(model, tmp_path):
+    rig = daq.virtual_ss15(model)
+
+    def slow(k, t, y):
+        if k % 50 == 25:
+            time.sleep(4e-3)  # 4 sample periods late: a few deadlines missed in a row
+        return 10.0
+
+    safety = daq.SafetyLimits(max_missed_deadlines=5, max_consecutive_missed=-1)
+    res = daq.run_trial(
+        rig,
+        daq.CallbackController(slow, 5000),
+        tmp_path / "m.csv",
+        sample_time=TS,
+        realtime=True,
+        safety=safety,
+    )
+    assert res.end_status.startswith("aborted: 6 missed deadlines exceed the budget of 5")
+    assert res.reason.startswith("6 missed deadlines exceed the budget of 5 (last at sample")
+    assert res.missed_deadlines == 6 and res.samples < 5000
+    assert res.final_output == 0.0
+    rec = Recording.load(tmp_path / "m.csv")
+    assert rec.metadata["end_reason"] == res.reason
+    assert rec.metadata["missed_deadlines"] == 6
 
 
 def test_pi_controller_regulates_the_rig(model, tmp_path):
@@ -293,7 +373,7 @@ def test_device_plant_runs_the_experiments_like_the_model(model, tmp_path):
     }
     out = {}
     for name, plant in plants.items():
-        init = drive_to_state(plant, "a", 1.0, 1.0)
+        init = drive_to_state(plant, "a", 1.0, 1.0, thresholds="simulation")
         out[name] = (
             init.offset,
             drift_test(plant, init, 1.6, 0).drift,

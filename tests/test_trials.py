@@ -1,6 +1,7 @@
 """Scripted trials: checking files, running them on the virtual rig, the CLI, Ctrl-C."""
 
 import argparse
+import io
 import json
 import signal
 import subprocess
@@ -10,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from preisach import Recording
+from preisach import Recording, trials
 from preisach.errors import TrialFileError
 from preisach.identify import find_fod_curves
 from preisach.trials import _main, add_parser, check_trial, load_trial, run_trial_file
@@ -68,6 +69,7 @@ range = [-10.0, 10.0]
 calibration = "ss15-c"
 [safety]
 u_limits = [-150.0, 100.0]
+ramp_rate = 20000.0
 [[steps]]
 kind = "fod_sweep"
 frequncy = 1.0
@@ -76,6 +78,10 @@ kind = "wiggle"
 [[steps]]
 kind = "drive"
 target = "psi_x"
+[[steps]]
+kind = "hold"
+duration = 0.1
+value = 120.0
 """,
     )
     with pytest.raises(TrialFileError) as info:
@@ -90,9 +96,47 @@ target = "psi_x"
         "steps[1]: kind 'wiggle' is unknown",
         "steps[2] (drive): target must be one of",
         "steps[2] (drive): give offset (V) or y_d",
+        "[safety]: ramp_rate = 20000 V/s exceeds slew_rate = 10000 V/s",
+        # the clean step's waveform is still checked against the limits that parsed
+        "steps[3] (hold): the planned input reaches 100.2 V at t = 0.5 s (from the step's "
+        "start), above the output limit u_max = 100 V",  # on its approach ramp at 200 V/s
     ):
         assert part in msg, part
-    assert msg.count("\n") == 8  # one line per error
+    assert msg.count("\n") == 10 and "10 error(s)" in msg  # one line per error
+    assert "steps[0] (fod_sweep): the planned" not in msg  # steps that did not parse
+
+
+def test_wrong_types_and_missing_keys_are_reported_not_crashed_on(tmp_path):
+    p = write(
+        tmp_path,
+        HEAD
+        + """
+[safety]
+u_limits = "wide"
+slew_rate = "fast"
+max_consecutive_missed = 0
+[[steps]]
+kind = "drive"
+offset = 10.0
+[[steps]]
+kind = "hold"
+duration = 0.1
+value = 140.0
+""",
+    )
+    with pytest.raises(TrialFileError) as info:  # was a KeyError on 'u_limits' / 'target'
+        check_trial(p)
+    msg = str(info.value)
+    for part in (
+        "[safety]: u_limits must be an array, got 'wide'",
+        "[safety]: slew_rate must be a number, got 'fast'",
+        "[safety]: max_consecutive_missed must be >= 1 (or < 0 for no limit), got 0",
+        "steps[0] (drive): missing required key 'target'",
+        # checked against the defaults in place of the invalid limits: +/-135 V
+        "steps[1] (hold): the planned input reaches 135.2 V",
+    ):
+        assert part in msg, part
+    assert "5 error(s)" in msg
 
 
 def test_check_planned_waveform_against_limits(tmp_path):
@@ -215,6 +259,126 @@ duration = 1.0
     assert not (tmp_path / "o" / "03_hold.csv").exists()
     assert _main(["check", str(EXAMPLES / "cml.toml")]) == 0
     assert _main(["check", str(tmp_path / "missing.toml")]) == 1
+
+
+STOP_BETWEEN_STEPS = (
+    HEAD
+    + """
+[safety]
+ramp_rate = 1000.0
+[[steps]]
+kind = "hold"
+duration = 0.2
+value = 50.0
+[[steps]]
+kind = "hold"
+duration = 1.0
+"""
+)
+
+
+def _planning_fails(monkeypatch, exc):
+    """Make planning step 2 raise ``exc`` at run time (check_trial is skipped)."""
+    real = trials.step_waveform
+
+    def plan(plan, step, u_now):
+        if step.index == 1:
+            raise exc
+        return real(plan, step, u_now)
+
+    monkeypatch.setattr(trials, "check_trial", trials.load_trial)
+    monkeypatch.setattr(trials, "step_waveform", plan)
+
+
+def _check_safety_ramp(out, status):
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["end_status"] == status and summary["steps_run"] == 1
+    step1 = Recording.load(out / "01_hold.csv")
+    assert step1.metadata["end_status"] == "complete" and step1.u[-1] == pytest.approx(50.0)
+    ramp = Recording.load(out / "02_ramp.csv")  # the same runner: logged and slew limited
+    assert ramp.metadata["experiment"] == "safety_ramp"
+    assert ramp.metadata["end_status"] == "complete"
+    assert ramp.t[0] == pytest.approx(step1.t[-1] + 1e-3)  # the time axis continues
+    np.testing.assert_allclose(np.diff(np.concatenate([[50.0], ramp.u])), -1.0)  # 1000 V/s
+    assert ramp.u[-1] == 0.0 and ramp.metadata["final_output"] == 0.0
+    assert summary["safety_ramp"]["file"] == str(out / "02_ramp.csv")
+    assert summary["safety_ramp"]["from"] == pytest.approx(50.0)
+    assert summary["safety_ramp"]["final_output"] == 0.0
+    assert not (out / "02_hold.csv").exists()
+
+
+def test_error_between_steps_ramps_down_and_writes_the_summary(tmp_path, monkeypatch):
+    _planning_fails(monkeypatch, RuntimeError("planner exploded"))
+    p = write(tmp_path, STOP_BETWEEN_STEPS)
+    with pytest.raises(RuntimeError, match="planner exploded"):
+        run_trial_file(p, tmp_path / "o")
+    _check_safety_ramp(tmp_path / "o", "aborted: RuntimeError: planner exploded")
+
+
+def test_ctrl_c_between_steps_exits_130_after_the_ramp(tmp_path, monkeypatch, capsys):
+    _planning_fails(monkeypatch, KeyboardInterrupt())
+    p = write(tmp_path, STOP_BETWEEN_STEPS)
+    parser = argparse.ArgumentParser(prog="preisach")
+    add_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["trial", "run", str(p), "-o", str(tmp_path / "o"), "-q"])
+    try:
+        status = args.func(args)
+    except KeyboardInterrupt:
+        pytest.fail("the KeyboardInterrupt escaped 'preisach trial run'")
+    assert status == 130
+    err = capsys.readouterr().err
+    assert err.startswith("preisach trial: interrupted (Ctrl-C)") and err.count("\n") == 1
+    assert "Traceback" not in err
+    _check_safety_ramp(tmp_path / "o", "interrupted")
+
+
+def test_progress_bar_reports_every_step_up_to_100_percent(tmp_path, capsys):
+    p = write(
+        tmp_path,
+        HEAD
+        + """
+[[steps]]
+kind = "hold"
+name = "first"
+duration = 0.3
+value = 10.0
+[[steps]]
+kind = "hold"
+name = "second"
+duration = 0.2
+""",
+    )
+    assert _main(["run", str(p), "-o", str(tmp_path / "o")]) == 0
+    captured = capsys.readouterr()
+    lines = [line for line in captured.err.splitlines() if line.startswith("step ")]
+    assert lines, f"no progress output on stderr: {captured.err!r}"
+    firsts = [line for line in lines if line.startswith("step 1/2 first")]
+    seconds = [line for line in lines if line.startswith("step 2/2 second")]
+    assert firsts and seconds and lines.index(firsts[-1]) < lines.index(seconds[0])
+    # 0.3 s at 10 V after a 50-sample approach from 0 V at 200 V/s
+    assert firsts[-1].endswith("[" + "#" * 30 + "] 100.0% 350/350 samples")
+    assert lines[-1] == f"step 2/2 second       [{'#' * 30}] 100.0% 200/200 samples"
+    assert "summary:" in captured.out
+
+    # on a terminal: one line per step, rewritten with carriage returns, ended at 100 %
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    stream = Tty()
+    bar = trials._ProgressBar(stream)
+    step = trials.PlannedStep(0, "hold", "h", {})
+    for done in (0, 50, 100):
+        bar(done, 100, step, 1, 1)
+    bar.close()
+    text = stream.getvalue()
+    assert text.count("\r") == 3 and text.endswith("100.0% 100/100 samples\n")
+    # a step that stops short is ended with a newline too
+    stream = Tty()
+    bar = trials._ProgressBar(stream)
+    bar(40, 100, step, 1, 1)
+    bar.close()
+    assert stream.getvalue().endswith(" 40.0% 40/100 samples\n")
 
 
 def test_sigint_leaves_a_complete_contiguous_recording(tmp_path):

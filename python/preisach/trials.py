@@ -11,7 +11,10 @@ Every step writes its own recording ``NN_<name>.csv`` (the format of
 :mod:`preisach.recording`, with the step's parameters in the metadata) and the run writes
 ``summary.json``.  Steps run back to back on the same device: the state one step leaves is the
 state the next starts from, and the recordings' time axis continues from step to step.  After
-the last step, or when a step aborts, the output is ramped to 0 V.
+the last step, or when a step aborts, the output is ramped to 0 V.  When the run stops between
+steps (Ctrl-C, an error while planning a step) the output is ramped from its last value to 0 V
+at ``ramp_rate`` in a recorded run ``NN_ramp.csv`` before the exception propagates, and
+``summary.json`` says ``interrupted`` or ``aborted: <ExcType: message>``.
 
 File layout
 -----------
@@ -47,7 +50,7 @@ File layout
     [safety]
     u_limits = [-135.0, 135.0]   # V at the actuator (the SA11 gives +/-135 V)
     slew_rate = 10000.0          # V/s
-    ramp_rate = 500.0            # V/s, ramp to 0 V on abort and at the end
+    ramp_rate = 500.0            # V/s, ramp to 0 V on abort and at the end (<= slew_rate)
     approach_rate = 200.0        # V/s, ramp from the current output to a step's first value
     y_limits = [-4.9, 4.9]       # V, primary input; outside aborts
     max_missed_deadlines = -1    # abort beyond this many missed deadlines in total (< 0: never)
@@ -111,7 +114,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -276,6 +279,13 @@ class _Errors:
     def add(self, where: str, message: str) -> None:
         self.items.append(f"{where}: {message}")
 
+    def raise_if_any(self, path: str) -> None:
+        """Raise one :class:`TrialFileError` listing every error, one per line."""
+        if self.items:
+            raise TrialFileError(
+                f"{path}: {len(self.items)} error(s)\n  " + "\n  ".join(self.items)
+            )
+
 
 def _suggest(key: str, known: Sequence[str]) -> str:
     close = difflib.get_close_matches(key, list(known), n=1)
@@ -301,6 +311,9 @@ def _section(
 ) -> dict[str, Any]:
     """Check keys and types of one table; returns the values with defaults filled in."""
     out: dict[str, Any] = {}
+    if not isinstance(data, Mapping):
+        errors.add(where, f"must be a table, got {data!r}")
+        data = {}
     for key in data:
         if key not in schema:
             errors.add(
@@ -313,6 +326,8 @@ def _section(
             value = data[key]
             if not _type_ok(value, types):
                 errors.add(where, f"{key} must be {_type_name(types)}, got {value!r}")
+                if default is not REQUIRED:  # go on with the default: later checks still run
+                    out[key] = default
                 continue
             out[key] = float(value) if types is _NUM else value
         elif default is REQUIRED:
@@ -457,7 +472,25 @@ class TrialPlan:
         )
 
 
-def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | None:
+class _Draft(NamedTuple):
+    """What parsing got, with errors or not."""
+
+    plan: TrialPlan  # only the steps that parsed cleanly; placeholders for invalid channels
+    output_ok: bool  # whether plan.output is the file's channel (not a placeholder)
+
+
+def _placeholder_channel() -> daq.Channel:
+    return daq.channel("(invalid)", 0, (-10.0, 10.0))
+
+
+def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> _Draft:
+    """Check the structure of a trial file, adding every problem found to ``errors``.
+
+    Returns a draft plan even when there are errors, so that :func:`check_trial` can still
+    plan the waveforms of the steps that parsed cleanly: it has those steps only, the
+    defaults in place of invalid ``[safety]`` values and placeholder channels in place of
+    invalid ones (``output_ok`` tells).  Use it as a plan only when ``errors`` is empty.
+    """
     for key in data:
         if key not in _SECTIONS:
             errors.add(
@@ -511,12 +544,35 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | N
         if not u_lim[0] <= 0.0 <= u_lim[1]:
             errors.add("[safety]", "u_limits must contain 0 V (the safe state)")
         safety["u_limits"] = list(u_lim)
+    else:  # check the waveforms against the amplifier
+        safety["u_limits"] = list(_SAFETY_KEYS["u_limits"][1])
     if y_lim is not None:
         safety["y_limits"] = list(y_lim)
+    else:
+        safety["y_limits"] = list(_SAFETY_KEYS["y_limits"][1])
+    bad_rates: set[str] = set()
     for key in ("slew_rate", "ramp_rate", "approach_rate"):
         v = safety[key]
         if not (isinstance(v, float) and v > 0):
             errors.add("[safety]", f"{key} must be > 0 V/s, got {v!r}")
+        elif key == "ramp_rate" and not math.isfinite(v):
+            errors.add("[safety]", f"ramp_rate must be a finite number of V/s, got {v!r}")
+        else:
+            continue
+        bad_rates.add(key)
+        safety[key] = _SAFETY_KEYS[key][1]  # go on checking the waveforms with the default
+    if not bad_rates & {"slew_rate", "ramp_rate"} and safety["ramp_rate"] > safety["slew_rate"]:
+        errors.add(
+            "[safety]",
+            f"ramp_rate = {safety['ramp_rate']:g} V/s exceeds slew_rate = "
+            f"{safety['slew_rate']:g} V/s: the ramp to 0 V after an abort must respect the "
+            "slew limit (use ramp_rate <= slew_rate)",
+        )
+    if safety["max_consecutive_missed"] == 0:
+        errors.add(
+            "[safety]",
+            "max_consecutive_missed must be >= 1 (or < 0 for no limit), got 0",
+        )
 
     steps_data = data.get("steps")
     steps: list[PlannedStep] = []
@@ -537,26 +593,27 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> TrialPlan | N
             )
             continue
         where = f"steps[{i}] ({kind})"
+        n_errors = len(errors.items)
         params = _section(st, where, {**_STEP_COMMON, **STEP_KINDS[kind]}, errors)
         _check_step(kind, params, where, dev, errors)
-        name = params.pop("name") or kind
-        params.pop("kind")
-        steps.append(PlannedStep(i, kind, name, params))
-    if errors.items or out is None or inp is None:
-        if out is None and "output" in data and not errors.items:  # pragma: no cover
-            errors.add("[output]", "invalid channel")
-        return None
-    return TrialPlan(
+        name = params.pop("name", None) or kind
+        params.pop("kind", None)
+        if len(errors.items) == n_errors:  # only clean steps are planned
+            steps.append(PlannedStep(i, kind, name, params))
+    if (out is None or inp is None) and not errors.items:  # pragma: no cover - defensive
+        errors.add("[output]" if out is None else "[input]", "invalid channel")
+    plan = TrialPlan(
         path,
-        trial["name"] or Path(path).stem,
-        trial["description"],
+        trial.get("name") or Path(path).stem,
+        trial.get("description", ""),
         ts,
         dev,
-        out,
-        inp,
+        out if out is not None else _placeholder_channel(),
+        inp if inp is not None else _placeholder_channel(),
         safety,
         steps,
     )
+    return _Draft(plan, out is not None)
 
 
 def _check_step(
@@ -571,7 +628,7 @@ def _check_step(
         if key in p and not all(_type_ok(v, _NUM) for v in p[key]):
             errors.add(where, f"{key} must be an array of numbers, got {p[key]!r}")
     if kind == "drive":
-        if p["target"] not in _TARGETS:
+        if "target" in p and p["target"] not in _TARGETS:
             errors.add(where, f"target must be one of {sorted(_TARGETS)}, got {p['target']!r}")
         if p["offset"] is None and p["y_d"] is None:
             errors.add(where, "give offset (V) or y_d (V, the desired output)")
@@ -604,17 +661,21 @@ def load_trial(path: str | os.PathLike[str]) -> TrialPlan:
         If the file does not exist.
 
     """
+    p, data = _read(path)
+    errors = _Errors()
+    draft = _parse(data, p, errors)
+    errors.raise_if_any(p)
+    return draft.plan
+
+
+def _read(path: str | os.PathLike[str]) -> tuple[str, dict[str, Any]]:
     p = os.fspath(path)
     with open(p, "rb") as f:
         try:
             data = tomllib.load(f)
         except tomllib.TOMLDecodeError as exc:
             raise TrialFileError(f"{p}: not valid TOML: {exc}") from None
-    errors = _Errors()
-    plan = _parse(data, p, errors)
-    if errors.items or plan is None:
-        raise TrialFileError(f"{p}: {len(errors.items)} error(s)\n  " + "\n  ".join(errors.items))
-    return plan
+    return p, data
 
 
 # ------------------------------------------------------------------------------------------
@@ -788,6 +849,11 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
     Besides :func:`load_trial`'s checks, every step's planned waveform is generated (starting
     from 0 V, each step from where the previous one ends) and checked against the safety
     limits ``u_limits`` and ``slew_rate`` and against the output channel's connector range.
+    The waveforms are checked even when the file has other errors: those of the steps that
+    parsed cleanly, against the limits that did (the defaults in place of invalid ones; no
+    channel-range check when the output channel is invalid; a step after one that did not
+    parse starts from where the last planned step ended), and every problem is reported in
+    one :class:`TrialFileError`.
 
     Returns
     -------
@@ -799,8 +865,9 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
         Listing every problem, one per line.
 
     """
-    plan = load_trial(path)
+    p, data = _read(path)
     errors = _Errors()
+    plan, output_ok = _parse(data, p, errors)
     lo, hi = plan.safety["u_limits"]
     slew = plan.safety["slew_rate"]
     ch_lo, ch_hi = sorted(
@@ -812,7 +879,7 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
         where = f"steps[{step.index}] ({step.kind})"
         try:
             u, _ = step_waveform(plan, step, u_now)
-        except (ValueError, TypeError, ArithmeticError) as exc:
+        except (ValueError, TypeError, ArithmeticError, OSError) as exc:
             errors.add(where, f"cannot plan the waveform: {exc}")
             continue
         if u.size == 0:
@@ -830,7 +897,7 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
                     f"(from the step's start), {what} = {bound:g} V",
                 )
         for bound, ok, what in ((ch_lo, u >= ch_lo, "below"), (ch_hi, u <= ch_hi, "above")):
-            if not ok.all():
+            if output_ok and not ok.all():
                 k = int(np.argmin(ok))
                 errors.add(
                     where,
@@ -848,10 +915,7 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
                 f" above the slew_rate limit {slew:g} V/s",
             )
         u_now = float(u[-1])
-    if errors.items:
-        raise TrialFileError(
-            f"{plan.path}: {len(errors.items)} error(s)\n  " + "\n  ".join(errors.items)
-        )
+    errors.raise_if_any(p)
     return plan
 
 
@@ -953,6 +1017,74 @@ def _make_device(plan: TrialPlan, device: str | None) -> Any:
     raise ValueError(f"device {spec!r}: expected 'sim' or 'comedi:/dev/comediN'")
 
 
+def _ramp_file(out: Path, number: int, written: set[Path], overwrite: bool) -> Path:
+    """``NN_ramp.csv`` in ``out``, or ``NN_ramp-2.csv``, ... when that name is taken."""
+    file = out / f"{number:02d}_ramp.csv"
+    k = 1
+    while file in written or (file.exists() and not overwrite):
+        k += 1
+        file = out / f"{number:02d}_ramp-{k}.csv"
+    return file
+
+
+def _ramp_to_zero(
+    dev: Any,
+    plan: TrialPlan,
+    safety: daq.SafetyLimits,
+    file: Path,
+    *,
+    t0: float,
+    realtime: bool,
+    fsync: bool,
+    priority: int,
+) -> dict[str, Any] | None:
+    """Ramp the actuator from its last output to 0 V at ``safety.ramp_rate``, recorded.
+
+    Used when a trial stops between steps (or a step raises): the runner's own ramp only
+    runs inside a trial.  Returns what happened, for the summary (``None`` when the output
+    is already at 0 V); never raises, so the caller can re-raise what stopped the trial.
+    """
+    try:
+        u = float(dev.outputs[0].physical(dev.last_output(0)))
+    except Exception as exc:  # noqa: BLE001 - reported in the summary
+        return {"error": f"cannot read the output: {type(exc).__name__}: {exc}"}
+    if abs(u) < 1e-9:
+        return None
+    ts = plan.sample_time
+    wave = np.append(_approach(u, 0.0, safety.ramp_rate, ts), 0.0)
+    doc: dict[str, Any] = {"file": str(file), "from": u, "ramp_rate": safety.ramp_rate}
+    try:
+        res = daq.run_trial(
+            dev,
+            wave,
+            file,
+            sample_time=ts,
+            realtime=realtime,
+            safety=safety,
+            metadata={"experiment": "safety_ramp", "trial": plan.name, "ramp_from": u},
+            overwrite=True,
+            fsync=fsync,
+            t0=t0,
+            priority=priority,
+            ramp_at_end=True,
+        )
+    except TrialInterrupted as exc:  # Ctrl-C during the ramp: the runner still ramped down
+        if not isinstance(exc.result, daq.TrialResult):  # pragma: no cover
+            doc["error"] = f"TrialInterrupted: {exc}"
+            return doc
+        res = exc.result
+    except BaseException as exc:  # noqa: BLE001 - reported; the caller re-raises its own
+        doc["error"] = f"{type(exc).__name__}: {exc}"
+        return doc
+    doc.update(
+        end_status=res.end_status,
+        samples=res.samples,
+        ramp_samples=res.ramp_samples,
+        final_output=res.final_output,
+    )
+    return doc
+
+
 def run_trial_file(
     path: str | os.PathLike[str],
     outdir: str | os.PathLike[str],
@@ -995,7 +1127,14 @@ def run_trial_file(
     TrialFileError
         If the file does not pass :func:`check_trial`.
     preisach.errors.TrialInterrupted
-        On Ctrl-C, after the current recording and the summary were written.
+        On Ctrl-C during a step, after the current recording and the summary were written.
+    BaseException
+        Anything else raised once the device is open - a Ctrl-C between steps, an error while
+        planning a step, a device error - is re-raised after the output was ramped from its
+        last value to 0 V at the safety ``ramp_rate`` (a recorded run of the same runner,
+        ``NN_ramp.csv``, ``NN`` the number of the step in progress, listed as
+        ``safety_ramp`` in the summary) and ``summary.json`` was written with ``end_status``
+        ``"interrupted"`` (:class:`KeyboardInterrupt`) or ``"aborted: <ExcType: message>"``.
 
     """
     plan = check_trial(path)
@@ -1010,8 +1149,12 @@ def run_trial_file(
     started = time.time()
     summary = out / "summary.json"
     interrupted: TrialInterrupted | None = None
+    number = 1  # of the step in progress
+    written: set[Path] = set()  # recordings of this run, never overwritten by the safety ramp
+    safety_ramp: dict[str, Any] | None = None
     try:
         for i, step in enumerate(plan.steps):
+            number = i + 1
             u, info = step_waveform(plan, step, u_now)
             last = i == len(plan.steps) - 1
             meta: dict[str, Any] = {
@@ -1049,6 +1192,7 @@ def run_trial_file(
                 if progress is not None:
                     progress(done, planned, _s, _i + 1, len(plan.steps))
 
+            written.add(file)
             try:
                 res = daq.run_trial(
                     dev,
@@ -1076,6 +1220,23 @@ def run_trial_file(
             if interrupted is not None or not res.complete:
                 end_status = res.end_status
                 break
+    except BaseException as exc:
+        end_status = (
+            "interrupted"
+            if isinstance(exc, KeyboardInterrupt)
+            else f"aborted: {type(exc).__name__}: {exc}"
+        )
+        safety_ramp = _ramp_to_zero(
+            dev,
+            plan,
+            safety,
+            _ramp_file(out, number, written, overwrite),
+            t0=t0,
+            realtime=realtime,
+            fsync=fsync,
+            priority=priority,
+        )
+        raise
     finally:
         doc = {
             "trial": plan.name,
@@ -1091,6 +1252,8 @@ def run_trial_file(
             "steps_run": len(outcomes),
             "steps": [o.to_dict() for o in outcomes],
         }
+        if safety_ramp is not None:
+            doc["safety_ramp"] = safety_ramp
         tmp = summary.with_name(summary.name + ".tmp")
         tmp.write_text(json.dumps(doc, indent=2) + "\n")
         os.replace(tmp, summary)
@@ -1110,6 +1273,14 @@ class _ProgressBar:
         self.stream = stream if stream is not None else sys.stderr
         self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.last: tuple[int, int] = (-1, -1)
+        self._open = False  # a terminal line without its newline yet
+
+    def close(self) -> None:
+        """End a pending terminal line (a step that stopped before 100 %)."""
+        if self._open:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._open = False
 
     def __call__(self, done: int, planned: int, step: PlannedStep, number: int, total: int) -> None:
         frac = done / planned if planned else 1.0
@@ -1120,7 +1291,11 @@ class _ProgressBar:
             f"{done}/{planned} samples"
         )
         if self.tty:
-            self.stream.write("\r" + text + ("\n" if done >= planned else ""))
+            if self._open and number != self.last[0]:
+                self.stream.write("\n")  # the previous step stopped short of 100 %
+            self.last = (number, -1)
+            self._open = done < planned
+            self.stream.write("\r" + text + ("" if self._open else "\n"))
             self.stream.flush()
         else:
             quarter = int(frac * 4)
@@ -1161,6 +1336,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
             progress=bar,
         )
     except TrialInterrupted as exc:
+        if bar is not None:
+            bar.close()
         out = exc.result
         if isinstance(out, TrialOutcome):
             print(
@@ -1169,6 +1346,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         return 130
+    except KeyboardInterrupt:  # between steps, or before the device was opened
+        if bar is not None:
+            bar.close()
+        print(
+            f"preisach trial: interrupted (Ctrl-C); the recordings and summary.json written "
+            f"to {args.output} are complete up to the interrupt",
+            file=sys.stderr,
+        )
+        return 130
+    if bar is not None:
+        bar.close()
     for s in outcome.steps:
         r = s.result
         print(
