@@ -9,14 +9,19 @@ import math
 
 import numpy as np
 import pytest
-from preisach import PreisachModel, _core
+from preisach import PreisachModel, _core, daq
+from preisach.calibration import SS15_CHANNEL_B
 from preisach.experiments import (
+    HOLD_BAND,
+    HOLD_DURATION,
     KINDS,
     SS15_INPUT_GAIN,
     TABLE_4_1,
     THESIS_GAINS,
     ClosedLoopProtocol,
     DriftProtocol,
+    HoldWindowError,
+    HoldWindowWarning,
     ModelPlant,
     PIConfig,
     Plant,
@@ -24,6 +29,7 @@ from preisach.experiments import (
     closed_loop_test,
     closed_loop_trials,
     control_effort,
+    default_thresholds,
     differential_drift,
     drift_test,
     drift_trials,
@@ -39,6 +45,7 @@ from preisach.experiments import (
 )
 from preisach.neutral import neutral_locus
 from preisach.noise import NoiseSpec
+from preisach.recording import Recording
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +56,33 @@ def plants():
 @pytest.fixture(scope="module")
 def inits(plants):
     return {f: {k: drive_to_state(plants[f], k, 1.0, f) for k in KINDS} for f in plants}
+
+
+SEEDS = range(20)
+
+
+def _means(run, plants, inits, metric):
+    """Mean of ``metric`` over 20 seeds per (frequency, state, gain): all 7 thesis gains."""
+    gains = [g for g in THESIS_GAINS for _ in SEEDS]
+    seeds = [s for _ in THESIS_GAINS for s in SEEDS]
+    out = {}
+    for f in plants:
+        for k in KINDS:
+            rows = run(plants[f], inits[f][k], gains, seeds, keep_traces=False)
+            v = np.array([getattr(r, metric) for r in rows]).reshape(len(THESIS_GAINS), -1)
+            for g, m in zip(THESIS_GAINS, v.mean(axis=1)):
+                out[f, k, g] = float(m)
+    return out
+
+
+@pytest.fixture(scope="module")
+def drift_means(plants, inits):
+    return _means(drift_trials, plants, inits, "drift")
+
+
+@pytest.fixture(scope="module")
+def effort_means(plants, inits):
+    return _means(closed_loop_trials, plants, inits, "nc")
 
 
 class RigLike:
@@ -218,6 +252,65 @@ def test_drive_to_state_with_experiment_thresholds_and_errors(plants):
         drive_to_state(LinearPlant(), "n", 1.0, 1.0)
 
 
+def test_thresholds_default_to_table_4_1_on_a_device_and_to_simulation_on_a_model(
+    plants, inits, tmp_path
+):
+    """§4.2: the simulations land within y_d +/- 0.03 V, the experiments in Table 4.1's windows."""
+    model = plants[1.0].model
+    dev = daq.DevicePlant(daq.virtual_ss15(model, seed=2), model=model, record_dir=tmp_path)
+    assert default_thresholds(dev) == "experiment"
+    assert default_thresholds(plants[1.0]) == default_thresholds(LinearPlant()) == "simulation"
+    for k in ("a", "d"):
+        init = drive_to_state(dev, k, 1.0, 1.0)
+        lo, hi = TABLE_4_1[1.0][k]
+        assert init.thresholds == "experiment" and init.window == pytest.approx((1 + lo, 1 + hi))
+        assert 1 + lo <= init.y_end <= 1 + hi
+        assert inits[1.0][k].thresholds == "simulation"
+        assert inits[1.0][k].window == pytest.approx((0.97, 1.03))
+    # psi_n keeps y_d +/- 0.03 V (reached through the locus) on the device too
+    n = drive_to_state(dev, "n", 1.0, 1.0)
+    assert n.window == pytest.approx((0.97, 1.03)) and n.hold_ok
+    # explicit choices still win, and Table 4.1 has no 3 Hz row: the error says what to do
+    sim = drive_to_state(dev, "a", 1.0, 1.0, thresholds="simulation")
+    assert sim.thresholds == "simulation" and 0.97 <= sim.y_end <= 1.03
+    assert drive_to_state(dev, "a", 1.0, 1.0, window=(0.9, 0.95)).thresholds == "window"
+    with pytest.raises(ValueError, match="default on a DAQ device.*thresholds='simulation'"):
+        drive_to_state(dev, "a", 1.0, 3.0)
+
+
+def test_hold_check_of_the_experiments(plants, inits, tmp_path):
+    """§4.2: the output must stay within y_d +/- 0.1 V from t_1 to t_1 + 2 s."""
+    assert (HOLD_BAND, HOLD_DURATION) == (0.1, 2.0)
+    # model plant, simulation window: lands within 0.03 V and stays there
+    for init in inits[1.0].values():
+        assert init.hold_band == pytest.approx((0.9, 1.1)) and init.hold_ok is True
+        assert init.hold_range[0] == pytest.approx(init.y_end, abs=1e-12)
+        assert init.to_dict()["hold_ok"] is True
+    # the virtual rig has no creep to carry psi_a from Table 4.1's window (0.78..0.86 V) to
+    # y_d: the output stays near 0.82 V and the check fails, as it would on such a rig
+    model = plants[1.0].model
+    dev = daq.DevicePlant(daq.virtual_ss15(model, seed=5), record_dir=tmp_path)
+    a = drive_to_state(dev, "a", 1.0, 1.0)
+    assert a.hold_ok is False and a.hold_range[1] < 0.9
+    n_runs = len(dev.results)
+    rec = Recording.load(dev.results[-1].path)  # the final run includes the 2 s hold
+    assert len(rec) == len(a.waveform.input) + round(HOLD_DURATION / dev.sample_time) + 1
+    with pytest.warns(HoldWindowWarning, match=r"left y_d \+/- 0.1 V"):
+        drive_to_state(dev, "a", 1.0, 1.0, hold_check="warn")
+    with pytest.raises(HoldWindowError, match="during the 2 s hold"):
+        drive_to_state(dev, "a", 1.0, 1.0, hold_check="raise")
+    # a wider band accepts it; "off" ends the final run at t_1 and records nothing
+    assert drive_to_state(dev, "a", 1.0, 1.0, hold_band=0.25, hold_check="raise").hold_ok
+    off = drive_to_state(plants[1.0], "d", 1.0, 1.0, hold_check="off")
+    assert off.hold_ok is None and off.hold_range is None and off.y_end == inits[1.0]["d"].y_end
+    assert len(dev.results) > n_runs
+    # the same on a model plant with an explicit window below the band
+    with pytest.raises(HoldWindowError):
+        drive_to_state(plants[2.0], "d", 1.0, 2.0, window=(1.15, 1.2), hold_check="raise")
+    with pytest.raises(ValueError, match="hold_check"):
+        drive_to_state(plants[1.0], "a", 1.0, 1.0, hold_check="maybe")
+
+
 def test_measured_locus_on_a_plant_without_model(plants):
     rig = RigLike(plants[1.0])
     loc = measure_locus(rig, np.linspace(-60, 60, 13), 1.0, cycles=10)
@@ -312,24 +405,47 @@ def test_drift_batch_equals_rig_replay(plants, inits):
         np.testing.assert_allclose(x.output, y.output, atol=1e-12)
 
 
-def test_drift_findings_of_chapter_4(plants, inits):
-    """Fig 4.12: |drift(psi_n)| is the smallest; psi_a drifts up, psi_d down (5 seeds)."""
-    seeds = range(5)
-    for f in (1.0, 2.0, 4.0):
-        for g in (0.8, 3.2, 5.6):
-            mean = {
-                k: np.mean(
-                    [
-                        r.drift
-                        for r in drift_trials(
-                            plants[f], inits[f][k], [g] * 5, seeds, keep_traces=False
-                        )
-                    ]
-                )
-                for k in KINDS
-            }
-            assert mean["a"] > 0 and mean["d"] < 0, (f, g, mean)
-            assert abs(mean["n"]) < min(abs(mean["a"]), abs(mean["d"])), (f, g, mean)
+def test_device_trials_record_init_and_test_as_one_run(plants, inits, tmp_path):
+    """On a DAQ device the initialisation and the test segment are one continuous trial."""
+    p = plants[1.0]
+    ts = p.sample_time
+    init = inits[1.0]["a"]
+    n0 = len(init.waveform.input)
+    dev = daq.DevicePlant(daq.virtual_ss15(p.model, seed=1), record_dir=tmp_path)
+    for run, metric, tol in ((drift_trials, "drift", 1e-3), (closed_loop_trials, "nc", 0.01)):
+        ref = run(p, init, [1.6], [0])[0]  # the model, batched from the snapshot at t_1
+        before = len(dev.results)
+        res = run(dev, init, [1.6], [0])[0]
+        assert len(dev.results) == before + 1  # one device run per trial, no gap at t_1
+        rec = Recording.load(dev.results[-1].path)
+        n = len(res.output)
+        assert n == len(ref.output) and len(rec) == n0 + n + 1  # + the clocked loop's extra sample
+        np.testing.assert_allclose(np.diff(rec.t), ts, rtol=1e-6)  # contiguous across t_1
+        assert rec.t[0] == 0.0 and rec.t[n0] == pytest.approx(n0 * ts)
+        # (the first ~10 samples are slew-limited from 0 V to the waveform's -100 V start)
+        np.testing.assert_allclose(rec.u[20:n0], init.waveform.input[20:], atol=1e-9)
+        np.testing.assert_allclose(rec.u[n0 : n0 + n], res.input, atol=1e-9)
+        np.testing.assert_allclose(res.output, rec.y[n0 + 1 : n0 + n + 1])
+        # the same physics as the model path, up to the rig's ADC noise and quantisation
+        assert getattr(res, metric) == pytest.approx(getattr(ref, metric), rel=tol, abs=tol)
+        np.testing.assert_allclose(res.output, ref.output, atol=5e-3)
+    # the controller still starts controller_on = 1 s after t_1, not 1 s into the waveform
+    assert np.all(res.control[: round(1.0 / ts)] == 0.0) and res.control[round(1.0 / ts)] != 0.0
+
+
+@pytest.mark.parametrize("f", [1.0, 2.0, 4.0])
+def test_drift_findings_of_chapter_4(drift_means, f):
+    """Fig 4.12 at every K_n = 0.8 i (i = 1..7), 20-seed means: |drift(psi_n)| is the smallest,
+    psi_a drifts up and psi_d down (the thesis's simulation shows this at 1, 2 and 4 Hz)."""
+    assert len(THESIS_GAINS) == 7
+    for g in THESIS_GAINS:
+        m = {k: drift_means[f, k, g] for k in KINDS}
+        assert m["a"] > 0 and m["d"] < 0, (f, g, m)
+        assert abs(m["n"]) < min(abs(m["a"]), abs(m["d"])), (f, g, m)
+    # and the non-neutral drift grows with the gain (§4.3: "in most cases"; here in all)
+    for k in ("a", "d"):
+        mags = [abs(drift_means[f, k, g]) for g in THESIS_GAINS]
+        assert np.all(np.diff(mags) > 0), (f, k, mags)
 
 
 # ------------------------------------------------------------------ closed loop
@@ -384,22 +500,32 @@ def test_closed_loop_on_a_python_plant():
         )
 
 
-def test_effort_findings_of_chapter_5(plants, inits):
-    """Figs 5.5-5.6: n_c(psi_n) below n_c(psi_a) and n_c(psi_d) at 1 and 2 Hz (4-seed means)."""
-    for f in (1.0, 2.0):
-        for g in (0.8, 5.6):
-            nc = {
-                k: np.mean(
-                    [
-                        r.nc
-                        for r in closed_loop_trials(
-                            plants[f], inits[f][k], [g] * 4, range(4), keep_traces=False
-                        )
-                    ]
-                )
-                for k in KINDS
-            }
-            assert nc["n"] < nc["a"] and nc["n"] < nc["d"], (f, g, nc)
+@pytest.mark.parametrize("f", [1.0, 2.0])
+def test_effort_findings_of_chapter_5(effort_means, f):
+    """Figs 5.5-5.6: n_c(psi_n) below n_c(psi_a) and n_c(psi_d) at every K_n = 0.8 i
+    (i = 1..7), 20-seed means, for 1 and 2 Hz initialisation."""
+    for g in THESIS_GAINS:
+        nc = {k: effort_means[f, k, g] for k in KINDS}
+        assert nc["n"] < nc["a"] and nc["n"] < nc["d"], (f, g, nc)
+
+
+def test_effort_at_4_hz_pins_what_the_simulation_shows(effort_means):
+    """At 4 Hz the thesis (Fig 5.7, and on the rig Fig 5.12) finds the advantage of psi_n gone
+    for K_n > 4.0.  Our simulation differs: n_c(psi_n) stays the smallest at all seven gains,
+    by a steady margin (psi_a 30-39 %, psi_d 12-18 % more effort).  That is plausible: the
+    thesis's 4 Hz result is measured on the rig, whose hysteresis is rate dependent (the major
+    loop widens with frequency, §4.3, and needed a model per frequency), while a Preisach model
+    has no rate effects - a state is a state however fast it was reached.  This test pins the
+    simulation's behaviour so that a change to it is noticed; it does not claim the thesis's
+    experiment."""
+    for g in THESIS_GAINS:
+        nc = {k: effort_means[4.0, k, g] for k in KINDS}
+        assert nc["n"] < nc["d"] < nc["a"], (g, nc)
+        assert 1.2 < nc["a"] / nc["n"] < 1.45, (g, nc)
+        assert 1.05 < nc["d"] / nc["n"] < 1.25, (g, nc)
+    # n_c grows about linearly with the gain (the noise dominates the controller's work)
+    n = np.array([effort_means[4.0, "n", g] for g in THESIS_GAINS])
+    np.testing.assert_allclose(n / np.asarray(THESIS_GAINS), n[0] / THESIS_GAINS[0], rtol=0.05)
 
 
 # ------------------------------------------------------------------ slopes (Appendix A)
@@ -468,3 +594,63 @@ def test_sweep_accepts_models_and_rejects_bad_arguments():
         regulation_sweep("drift", {1.0: m}, states=["x"])
     with pytest.raises(TypeError, match="plants"):
         regulation_sweep("drift", {1.0: "ss15"})
+
+
+# ------------------------------------------------------------------ Comedi: closing ramp
+_COMEDI_SETUP = """
+    open /dev/comedi0 -> 1
+    board_name -> pci-multiq
+    find_subdevice_by_type 2 0 -> 1
+    get_n_channels 1 -> 4
+    find_range 1 1 -10 10 -> 0
+    get_maxdata 1 1 -> 4095
+    get_subdevice_flags 1 -> 0
+    hardcal_converter 1 1 0 from -> 0 : 1 -10 0 204.75
+    find_subdevice_by_type 1 0 -> 0
+    get_n_channels 0 -> 8
+    find_range 0 1 -5 5 -> 0
+    get_maxdata 0 1 -> 8191
+    get_subdevice_flags 0 -> 0
+    hardcal_converter 0 1 0 to -> 0 : 1 0 -5 0.001220703125
+"""
+
+
+def _code(connector):
+    """comedi_from_physical of the 12-bit +/-10 V output above (round half to even)."""
+    return int(round(0.0 + 204.75 * (connector - -10.0)))
+
+
+def test_comedi_close_ramps_the_actuator_to_zero():
+    """close() ramps the output to 0 V at <= close_ramp_rate instead of stepping it there."""
+    c_last = SS15_CHANNEL_B.inverse(20.0)  # 20 V at the actuator: -1.418 V at the connector
+    # 500 V/s at the actuator is 35.4 mV/ms at the connector: ceil(1.418 / 0.0354) = 41 writes
+    steps = math.ceil(abs(c_last) / (500.0 * 1e-3 / abs(SS15_CHANNEL_B.gain)) - 1e-9)
+    assert steps == 41
+    ramp = [_code(c_last * (1.0 - s / steps)) for s in range(1, steps)] + [_code(0.0)]
+    protocol = (
+        _COMEDI_SETUP
+        + f"data_write 1 1 0 0 {_code(c_last)} -> 0\n"
+        + "".join(f"data_write 1 1 0 0 {c} -> 0\n" for c in ramp)
+        + "close ->\n"
+    )
+    dev = daq._core.ComediDevice.replay(
+        protocol, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
+    )
+    assert (dev.close_ramp_rate, dev.close_ramp_period) == (500.0, 1e-3)
+    dev.write([c_last])
+    dev.close()
+    calls = dev.verify_protocol()  # every expected call made, in order: no step to 0 V
+    assert calls[-1] == "close" and not dev.is_open
+    written = np.array([_code(c_last)] + [int(c.split()[-1]) for c in calls[-steps - 1 : -1]])
+    u = SS15_CHANNEL_B.gain * (written / 204.75 - 10.0) + SS15_CHANNEL_B.offset  # actuator V
+    assert np.all(np.diff(u) < 0)  # monotone from 20 V ...
+    assert np.max(np.abs(np.diff(u))) <= 0.5 + 14.12 / 204.75  # 0.5 V/ms (+ 1 code rounding)
+    assert written[-1] == _code(0.0)  # ... to 0 V at the connector
+    with pytest.raises(ValueError, match="close_ramp_rate"):
+        daq._core.ComediDevice.replay(
+            _COMEDI_SETUP,
+            "/dev/comedi0",
+            [daq.ss15_output_channel()],
+            [daq.ss15_input_channel()],
+            close_ramp_rate=-1.0,
+        )

@@ -187,22 +187,34 @@ void register_daq(py::module_& m) {
         "A Comedi DAQ card (Linux): opens `file`, configures the channels' subdevices and ranges, and converts "
         "with comedilib's softcal/hardcal polynomials. Raises preisach.errors.DeviceError naming the file.")
         .def(py::init([](const std::string& file, const std::vector<pd::Channel>& outputs,
-                         const std::vector<pd::Channel>& inputs, const std::string& calibration_file) {
-                 return std::make_unique<pd::ComediDevice>(pd::make_comedilib_api(file), file, outputs, inputs,
-                                                           pd::ComediOptions{calibration_file});
+                         const std::vector<pd::Channel>& inputs, const std::string& calibration_file,
+                         double close_ramp_rate, double close_ramp_period) {
+                 return std::make_unique<pd::ComediDevice>(
+                     pd::make_comedilib_api(file), file, outputs, inputs,
+                     pd::ComediOptions{calibration_file, close_ramp_rate, close_ramp_period});
              }),
-             py::arg("file"), py::arg("outputs"), py::arg("inputs"), py::arg("calibration_file") = "")
+             py::arg("file"), py::arg("outputs"), py::arg("inputs"), py::arg("calibration_file") = "",
+             py::arg("close_ramp_rate") = 500.0, py::arg("close_ramp_period") = 1e-3)
         .def_static(
             "replay",
             [](const std::string& protocol, const std::string& file, const std::vector<pd::Channel>& outputs,
-               const std::vector<pd::Channel>& inputs, const std::string& calibration_file) {
-                return std::make_unique<pd::ComediDevice>(std::make_unique<pd::ComediReplay>(protocol), file, outputs,
-                                                          inputs, pd::ComediOptions{calibration_file});
+               const std::vector<pd::Channel>& inputs, const std::string& calibration_file, double close_ramp_rate,
+               double close_ramp_period) {
+                return std::make_unique<pd::ComediDevice>(
+                    std::make_unique<pd::ComediReplay>(protocol), file, outputs, inputs,
+                    pd::ComediOptions{calibration_file, close_ramp_rate, close_ramp_period});
             },
             py::arg("protocol"), py::arg("file"), py::arg("outputs"), py::arg("inputs"),
-            py::arg("calibration_file") = "",
-            "The device driven by a replayed comedilib protocol instead of a card (for tests; see comedi.hpp).")
-        .def("close", &pd::ComediDevice::close, "Set the outputs to 0 V at the connector and close the file.")
+            py::arg("calibration_file") = "", py::arg("close_ramp_rate") = 500.0, py::arg("close_ramp_period") = 1e-3,
+            "The device driven by a replayed comedilib protocol instead of a card (for tests; see comedi.hpp). The "
+            "closing ramp does not sleep on a replay.")
+        .def("close", &pd::ComediDevice::close, py::call_guard<py::gil_scoped_release>(),
+             "Ramp the outputs to 0 V at the connector, at close_ramp_rate (V/s at the actuator, one write every "
+             "close_ramp_period s), and close the file. Also done when the device is destroyed.")
+        .def_property_readonly("close_ramp_rate", [](const pd::ComediDevice& d) { return d.options().close_ramp_rate; },
+                               "Rate of the closing ramp to 0 V (V/s at the actuator).")
+        .def_property_readonly("close_ramp_period", [](const pd::ComediDevice& d) { return d.options().close_ramp_period; },
+                               "Time between two writes of the closing ramp (s).")
         .def_property_readonly("is_open", &pd::ComediDevice::is_open)
         .def_property_readonly("file", &pd::ComediDevice::file)
         .def_property_readonly("board", &pd::ComediDevice::board)

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -343,11 +344,17 @@ TEST_CASE("comedi device: replayed protocol of configuration, conversions, I/O a
         data_write 1 1 0 0 32768 -> 0
         data_read 0 1 2 0 -> 0 0
         data_write 1 1 0 0 36044 -> 0
-        # close: outputs to 0 V
-        data_write 1 1 0 0 32768 -> 0
-        close ->
     )";
-    auto api = std::make_unique<ComediReplay>(protocol);
+    // close: the output ramps from 1 V to 0 V at the connector at the default 500 V/s at the
+    // actuator (gain -14.12: 35.41 V/s at the connector, 35.41 mV per 1 ms write), so
+    // ceil(1 / 0.035411) = 29 writes of 1 V * (29 - s) / 29, the last exactly 0 V (code 32768).
+    std::string closing;
+    for (int s = 1; s <= 29; ++s) {
+        const double v = 1.0 * (29 - s) / 29.0;
+        closing += "data_write 1 1 0 0 " + std::to_string(unsigned(std::nearbyint(3276.75 * (v + 10.0)))) + " -> 0\n";
+    }
+    closing += "close ->\n";
+    auto api = std::make_unique<ComediReplay>(protocol + closing);
     Channel out{"V_in", 1, -1, -10.0, 10.0, {-14.12, -0.02}, "V", 0};
     Channel in{"V_out", 1, -1, -5.0, 5.0, {1.0, 0.0}, "V", 0};
     {
@@ -363,9 +370,144 @@ TEST_CASE("comedi device: replayed protocol of configuration, conversions, I/O a
         dev.read(&v);
         CHECK(std::isnan(v));  // code 0: out of range
         dev.write(&one);   // 3276.75 * (1 V + 10) = 36044.25 -> 36044
+        CHECK(dev.close_ramp_steps() == 29);
         dev.close();
-        CHECK_NOTHROW(static_cast<ComediReplay&>(dev.api()).verify());
+        auto& replay = static_cast<ComediReplay&>(dev.api());
+        CHECK_NOTHROW(replay.verify());
+        CHECK(replay.paused() == doctest::Approx(28 * 1e-3));  // one period between writes
+        CHECK_FALSE(dev.is_open());
+        CHECK_NOTHROW(dev.close());  // idempotent: no further calls
     }
+}
+
+// Forwards every call to a shared replay, so the protocol can be checked after the device
+// (which owns its interface) is destroyed.
+struct SpyApi final : ComediApi {
+    explicit SpyApi(std::shared_ptr<ComediReplay> r) : r_(std::move(r)) {}
+    bool open(const std::string& f) override { return r_->open(f); }
+    void close() override { r_->close(); }
+    std::string error() override { return r_->error(); }
+    std::string board_name() override { return r_->board_name(); }
+    int find_subdevice_by_type(int t, unsigned s) override { return r_->find_subdevice_by_type(t, s); }
+    int get_subdevice_type(unsigned s) override { return r_->get_subdevice_type(s); }
+    int get_subdevice_flags(unsigned s) override { return r_->get_subdevice_flags(s); }
+    int get_n_channels(unsigned s) override { return r_->get_n_channels(s); }
+    long long get_maxdata(unsigned s, unsigned c) override { return r_->get_maxdata(s, c); }
+    int find_range(unsigned s, unsigned c, double lo, double hi) override { return r_->find_range(s, c, lo, hi); }
+    bool load_calibration(const std::string& p) override { return r_->load_calibration(p); }
+    int softcal_converter(unsigned s, unsigned c, unsigned r, bool to, ComediPoly& p) override {
+        return r_->softcal_converter(s, c, r, to, p);
+    }
+    int hardcal_converter(unsigned s, unsigned c, unsigned r, bool to, ComediPoly& p) override {
+        return r_->hardcal_converter(s, c, r, to, p);
+    }
+    int data_read(unsigned s, unsigned c, unsigned r, unsigned a, unsigned& d) override {
+        return r_->data_read(s, c, r, a, d);
+    }
+    int data_write(unsigned s, unsigned c, unsigned r, unsigned a, unsigned d) override {
+        return r_->data_write(s, c, r, a, d);
+    }
+    double to_physical(unsigned d, const ComediPoly& p) override { return r_->to_physical(d, p); }
+    unsigned from_physical(double v, const ComediPoly& p) override { return r_->from_physical(v, p); }
+    void pause(double seconds) override { r_->pause(seconds); }
+
+private:
+    std::shared_ptr<ComediReplay> r_;
+};
+
+TEST_CASE("comedi device: close ramps every output to 0 V no faster than the ramp rate") {
+    // Two outputs on a 12-bit AO subdevice (+/-10 V, 204.75 codes per volt), one input.
+    const std::string setup = R"(
+        open /dev/comedi0 -> 1
+        board_name -> b
+        find_subdevice_by_type 2 0 -> 1
+        get_n_channels 1 -> 4
+        find_range 1 0 -10 10 -> 0
+        get_maxdata 1 0 -> 4095
+        get_subdevice_flags 1 -> 0
+        hardcal_converter 1 0 0 from -> 0 : 1 -10 0 204.75
+        find_subdevice_by_type 2 0 -> 1
+        get_n_channels 1 -> 4
+        find_range 1 1 -10 10 -> 0
+        get_maxdata 1 1 -> 4095
+        get_subdevice_flags 1 -> 0
+        hardcal_converter 1 1 0 from -> 0 : 1 -10 0 204.75
+        find_subdevice_by_type 1 0 -> 0
+        get_n_channels 0 -> 8
+        find_range 0 0 -5 5 -> 0
+        get_maxdata 0 0 -> 8191
+        get_subdevice_flags 0 -> 0
+        hardcal_converter 0 0 0 to -> 0 : 1 0 -5 0.001220703125
+    )";
+    Channel a{"A", 0, -1, -10.0, 10.0, {-14.12, -0.02}, "V", 0};  // the SS15 amplifier
+    Channel b{"B", 1, -1, -10.0, 10.0, {1.0, 0.0}, "V", 0};       // unit gain
+    Channel in{"y", 0, -1, -5.0, 5.0, {1.0, 0.0}, "V", 0};
+    auto code = [](double v) { return unsigned(std::nearbyint(204.75 * (v + 10.0))); };
+    // A at -2 V and B at +0.5 V (connector); 100 V/s at the actuator, a write every 2 ms:
+    // A may move 0.2 / 14.12 = 14.2 mV per write -> ceil(2 / 0.014164) = 142 writes; B (0.2 V per
+    // write) alone would need 3, but both move together in A's 142 steps.
+    const int n = 142;
+    std::string protocol = setup + "data_write 1 0 0 0 " + std::to_string(code(-2.0)) + " -> 0\n" +
+                           "data_write 1 1 0 0 " + std::to_string(code(0.5)) + " -> 0\n";
+    for (int s = 1; s <= n; ++s) {
+        protocol += "data_write 1 0 0 0 " + std::to_string(code(-2.0 * (n - s) / n)) + " -> 0\n";
+        protocol += "data_write 1 1 0 0 " + std::to_string(code(0.5 * (n - s) / n)) + " -> 0\n";
+    }
+    protocol += "close ->\n";
+    ComediOptions opt;
+    opt.close_ramp_rate = 100.0;
+    opt.close_ramp_period = 2e-3;
+    {
+        ComediDevice dev(std::make_unique<ComediReplay>(protocol), "/dev/comedi0", {a, b}, {in}, opt);
+        const double v[2] = {-2.0, 0.5};
+        dev.write(v);
+        CHECK(dev.close_ramp_steps() == n);
+        dev.close();
+        auto& replay = static_cast<ComediReplay&>(dev.api());
+        CHECK_NOTHROW(replay.verify());
+        CHECK(replay.paused() == doctest::Approx((n - 1) * 2e-3));
+        // The codes written after the trial: monotone to 0 V, no step above the rate (+1 code of
+        // rounding), the last one exactly 0 V.
+        const auto calls = replay.log();
+        std::vector<long> codes_a;
+        for (std::size_t i = calls.size() - 1 - 2 * n; i + 1 < calls.size(); i += 2)
+            codes_a.push_back(std::stol(calls[i].substr(calls[i].rfind(' '))));
+        REQUIRE(codes_a.size() == std::size_t(n));
+        long prev = long(code(-2.0));
+        const double max_codes = 100.0 * 2e-3 / 14.12 * 204.75 + 1.0;
+        for (long c : codes_a) {
+            CHECK(c >= prev);
+            CHECK(double(c - prev) <= max_codes);
+            prev = c;
+        }
+        CHECK(codes_a.back() == long(code(0.0)));
+    }
+    // The destructor ramps too: 0.1 V at A with 1000 V/s and 1 ms is 1 / 14.12 = 70.8 mV per
+    // write -> 2 writes.  A spy keeps the replay alive after the device is gone.
+    {
+        std::string p = setup + "data_write 1 0 0 0 " + std::to_string(code(0.1)) + " -> 0\n" +
+                        "data_write 1 1 0 0 " + std::to_string(code(0.0)) + " -> 0\n";
+        p += "data_write 1 0 0 0 " + std::to_string(code(0.05)) + " -> 0\ndata_write 1 1 0 0 " +
+             std::to_string(code(0.0)) + " -> 0\n";
+        p += "data_write 1 0 0 0 " + std::to_string(code(0.0)) + " -> 0\ndata_write 1 1 0 0 " +
+             std::to_string(code(0.0)) + " -> 0\nclose ->\n";
+        auto replay = std::make_shared<ComediReplay>(p);
+        ComediOptions fast;
+        fast.close_ramp_rate = 1000.0;
+        {
+            ComediDevice dev(std::make_unique<SpyApi>(replay), "/dev/comedi0", {a, b}, {in}, fast);
+            const double v[2] = {0.1, 0.0};
+            dev.write(v);
+            CHECK(replay->consumed() == replay->size() - 5);
+        }
+        CHECK_NOTHROW(replay->verify());
+        CHECK(replay->paused() == doctest::Approx(1e-3));
+    }
+    ComediOptions bad;
+    bad.close_ramp_rate = 0.0;
+    CHECK_THROWS_WITH_AS(ComediDevice(std::make_unique<ComediReplay>(setup), "/dev/comedi0", {a, b}, {in}, bad),
+                         "comedi: close_ramp_rate must be a positive finite number of V/s, got 0.000000",
+                         std::invalid_argument);
 }
 
 TEST_CASE("comedi device: protocol mismatch and a missing device file are clear errors") {

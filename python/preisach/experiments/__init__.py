@@ -36,12 +36,17 @@ from .protocol import (
 )
 from .sweep import EXPERIMENTS, SweepResult, regulation_sweep, state_slopes
 from .waveforms import (
+    HOLD_BAND,
+    HOLD_DURATION,
     KINDS,
     SIMULATION_TOLERANCE,
     TABLE_4_1,
+    HoldWindowError,
+    HoldWindowWarning,
     Initialisation,
     Waveform,
     branch_input,
+    default_thresholds,
     drive_to_state,
     landing_window,
     measure_locus,
@@ -50,6 +55,8 @@ from .waveforms import (
 
 __all__ = [
     "EXPERIMENTS",
+    "HOLD_BAND",
+    "HOLD_DURATION",
     "KINDS",
     "SIMULATION_TOLERANCE",
     "SS15_INPUT_GAIN",
@@ -59,6 +66,8 @@ __all__ = [
     "ClosedLoopResult",
     "DriftProtocol",
     "DriftResult",
+    "HoldWindowError",
+    "HoldWindowWarning",
     "Initialisation",
     "ModelPlant",
     "PIConfig",
@@ -69,6 +78,7 @@ __all__ = [
     "closed_loop_test",
     "closed_loop_trials",
     "control_effort",
+    "default_thresholds",
     "differential_drift",
     "drift_test",
     "drift_trials",

@@ -9,6 +9,7 @@ against the noise (:func:`preisach.experiments.protocol.control_effort`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -101,7 +102,12 @@ def closed_loop_trials(
 
     On a plant with snapshots and ``run_closed_loop_batch`` (:class:`ModelPlant`) all trials
     run in one C++ call on every core with the GIL released; otherwise each trial resets the
-    plant, replays the initialisation waveform and runs the loop with ``run_closed_loop``.
+    plant and runs the initialisation waveform and the test segment as **one**
+    ``run_closed_loop`` (the controller's ``enable_at`` shifted by the waveform's length, so it
+    still starts ``controller_on`` seconds after ``t_1``), and keeps the samples from ``t_1`` on.
+    On a DAQ device (:class:`preisach.daq.DevicePlant`) that is one continuous, recorded trial:
+    no pause at ``t_1`` between two device runs with the output held at the last
+    initialisation sample.
 
     Parameters
     ----------
@@ -139,11 +145,14 @@ def closed_loop_trials(
     if init.state is not None and batch is not None:
         U, Y, UC = (np.asarray(a) for a in batch(init.state, U_open, cfg))
     else:
+        lead = np.asarray(init.waveform.input, dtype=float)
+        n0 = lead.size
+        cfg_run = dataclasses.replace(cfg, enable_at=cfg.enable_at + n0)
         U, Y, UC = (np.empty_like(U_open) for _ in range(3))
         for r in range(len(U_open)):
             plant.reset(None)
-            plant.run_open_loop(init.waveform.input)
-            U[r], Y[r], UC[r] = plant.run_closed_loop(U_open[r], cfg)
+            u, y, uc = plant.run_closed_loop(np.concatenate([lead, U_open[r]]), cfg_run)
+            U[r], Y[r], UC[r] = (np.asarray(a)[n0:] for a in (u, y, uc))
     out = []
     last = (max(0.0, p.end - 1.0), p.end)
     for r, (g, s) in enumerate(zip(gains, seeds)):

@@ -83,8 +83,11 @@ def drift_trials(
     """Drift trials from one initial state for paired lists of gains and seeds.
 
     On a plant that can restore a snapshot and run batches (:class:`ModelPlant`) all trials
-    run in one call from ``init.state`` on every core; otherwise each trial resets the plant,
-    replays the initialisation waveform and runs the test segment.
+    run in one call from ``init.state`` on every core; otherwise each trial resets the plant and
+    plays the initialisation waveform and the test segment as **one** run, whose outputs from
+    ``t_1`` on are the result.  On a DAQ device (:class:`preisach.daq.DevicePlant`) that is one
+    continuous, recorded trial: no pause between two device runs at ``t_1``, during which the
+    output would sit at the last initialisation sample unrecorded.
 
     Parameters
     ----------
@@ -121,11 +124,12 @@ def drift_trials(
     if init.state is not None and batch is not None:
         Y = np.asarray(batch(init.state, U))
     else:
+        lead = np.asarray(init.waveform.input, dtype=float)
+        n0 = lead.size
         Y = np.empty_like(U)
         for r in range(len(U)):
             plant.reset(None)
-            plant.run_open_loop(init.waveform.input)
-            Y[r] = plant.run_open_loop(U[r])
+            Y[r] = np.asarray(plant.run_open_loop(np.concatenate([lead, U[r]])))[n0:]
     out = []
     for r, (g, s) in enumerate(zip(gains, seeds)):
         d, yb, ya = differential_drift(Y[r], ts, p.before, p.after)

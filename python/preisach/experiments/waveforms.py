@@ -24,8 +24,21 @@ image about ``l`` stays in range.
 
 :func:`drive_to_state` finds the offset: ``l = N_inv(y_d)`` (Eq 2.19/2.20) for psi_n and a
 search over ``u_bar`` for psi_a/psi_d, each refined on the plant until the output at ``t_1``
-lands in the target window - by default ``y_d +/- 0.03`` V (the thesis's simulation tolerance);
-``thresholds="experiment"`` uses the landing windows of Table 4.1 for psi_a/psi_d.
+lands in the target window.  Which window depends on the plant, as in the thesis (§4.2):
+
+* a simulated plant (:class:`~preisach.experiments.ModelPlant`, any plant that is not a DAQ
+  device): ``thresholds="simulation"``, ``y_d +/- 0.03`` V;
+* a DAQ device (:class:`preisach.daq.DevicePlant`, a real rig or the virtual one):
+  ``thresholds="experiment"``, the landing windows of Table 4.1 for psi_a/psi_d (psi_n keeps
+  ``y_d +/- 0.03`` V, reached through the measured locus).
+
+The thesis's experiments also accept an initial state only if the output then stays within
+``y_d +/- 0.1`` V from ``t_1`` to ``t_1 + 2`` s (:data:`HOLD_BAND`, :data:`HOLD_DURATION`);
+:func:`drive_to_state` records that check (``hold_check``) and can warn or raise.  On the rig the
+beam's creep carries the output from the Table 4.1 window towards ``y_d``; a plant without such
+dynamics (the classical model, the virtual rig without blocks) stays where it landed, so
+psi_a/psi_d reached with the Table 4.1 windows fail the check there - use
+``thresholds="simulation"`` for such plants.
 
 Every waveform carries its time base (:attr:`Waveform.time`) so it can be played on a DAQ
 device as it is.
@@ -34,24 +47,30 @@ device as it is.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import ConvergenceError
+from ..errors import ConvergenceError, PreisachError, PreisachWarning
 from ..model import State
 from ..neutral import NeutralLocus, neutral_locus
 from .plant import Plant
 
 __all__ = [
+    "HOLD_BAND",
+    "HOLD_DURATION",
     "KINDS",
     "SIMULATION_TOLERANCE",
     "TABLE_4_1",
+    "HoldWindowError",
+    "HoldWindowWarning",
     "Initialisation",
     "Waveform",
     "branch_input",
+    "default_thresholds",
     "drive_to_state",
     "landing_window",
     "measure_locus",
@@ -73,6 +92,48 @@ TABLE_4_1: dict[float, dict[str, tuple[float, float]]] = {
     2.0: {"a": (-0.28, -0.22), "d": (0.22, 0.28)},
     4.0: {"a": (-0.44, -0.38), "d": (0.38, 0.44)},
 }
+
+#: Half-width (V) of the band ``y_d +/- HOLD_BAND`` the output must stay in from ``t_1`` to
+#: ``t_1 + HOLD_DURATION`` in the thesis's experiments (§4.2, also Fig 4.14).
+HOLD_BAND: float = 0.1
+
+#: Length (s) of the hold after ``t_1`` over which :data:`HOLD_BAND` is checked (§4.2).
+HOLD_DURATION: float = 2.0
+
+_HOLD_CHECKS = ("record", "warn", "raise", "off")
+
+
+class HoldWindowWarning(PreisachWarning):
+    """The output left ``y_d +/- HOLD_BAND`` during the hold after ``t_1`` (thesis §4.2)."""
+
+
+class HoldWindowError(PreisachError, ValueError):
+    """An initial state failed the thesis's acceptance check (``hold_check="raise"``)."""
+
+
+def _is_device(plant: object) -> bool:
+    from ..daq import DevicePlant  # the DAQ layer does not import the experiments
+
+    return isinstance(plant, DevicePlant)
+
+
+def default_thresholds(plant: Plant) -> str:
+    """Landing thresholds :func:`drive_to_state` uses on ``plant`` by default.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+
+    Returns
+    -------
+    str
+        ``"experiment"`` (Table 4.1) for a DAQ device plant (:class:`preisach.daq.DevicePlant`:
+        a real or virtual rig, whether or not it carries a model for the neutral locus);
+        ``"simulation"`` (``y_d +/- 0.03`` V) for every other plant.
+
+    """
+    return "experiment" if _is_device(plant) else "simulation"
 
 
 def _check_kind(kind: str) -> str:
@@ -111,6 +172,7 @@ def landing_window(
         ``"simulation"``: ``y_d +/- tolerance``.  ``"experiment"``: Table 4.1's
         ``[y_d + dy_l, y_d + dy_h]`` for psi_a and psi_d at 1, 2 or 4 Hz (psi_n keeps
         ``y_d +/- tolerance``: the thesis reaches it through the measured locus).
+        :func:`drive_to_state` picks one from the plant (:func:`default_thresholds`).
     tolerance : float
         Half-width (V) of the simulation window.
 
@@ -331,9 +393,19 @@ class Initialisation:
     iterations : int
         Plant runs the offset search used.
     state : State or None
-        Snapshot of the plant after ``t_1`` (``None`` for plants that cannot restore one).
+        Snapshot of the plant at the end of the final run: at ``t_1``, or after the hold when
+        the hold was checked - the same state for a rate-independent model, whose state a
+        constant input does not change (``None`` for plants that cannot restore one).
     l_inverse : float or None
         For psi_n: ``N_inv(y_d)`` from the locus, before any correction on the plant (V).
+    thresholds : str or None
+        How ``window`` was chosen: ``"simulation"``, ``"experiment"`` (Table 4.1) or
+        ``"window"`` (given explicitly).
+    hold_band : (float, float) or None
+        Acceptance band ``y_d +/- HOLD_BAND`` (V) of the hold check; ``None`` if not checked.
+    hold_range : (float, float) or None
+        Lowest and highest output (V) from ``t_1`` to ``t_1 + HOLD_DURATION`` in the final run;
+        ``None`` if not checked.
 
     """
 
@@ -345,6 +417,18 @@ class Initialisation:
     iterations: int
     state: State | None = field(default=None, repr=False)
     l_inverse: float | None = None
+    thresholds: str | None = None
+    hold_band: tuple[float, float] | None = None
+    hold_range: tuple[float, float] | None = None
+
+    @property
+    def hold_ok(self) -> bool | None:
+        """Whether the output stayed in ``hold_band`` during the hold (§4.2); None: unchecked."""
+        if self.hold_band is None or self.hold_range is None:
+            return None
+        return bool(
+            self.hold_band[0] <= self.hold_range[0] and self.hold_range[1] <= self.hold_band[1]
+        )
 
     @property
     def offset(self) -> float:
@@ -372,6 +456,10 @@ class Initialisation:
             "offset": self.offset,
             "iterations": self.iterations,
             "l_inverse": self.l_inverse,
+            "thresholds": self.thresholds,
+            "hold_band": None if self.hold_band is None else list(self.hold_band),
+            "hold_range": None if self.hold_range is None else list(self.hold_range),
+            "hold_ok": self.hold_ok,
             "waveform": self.waveform.to_dict(),
         }
 
@@ -468,13 +556,16 @@ def drive_to_state(
     frequency: float,
     *,
     locus: NeutralLocus | None = None,
-    thresholds: str = "simulation",
+    thresholds: str | None = None,
     tolerance: float = SIMULATION_TOLERANCE,
     window: tuple[float, float] | None = None,
     cycles: float = 10.0,
     u_hat: float | None = None,
     settle: int = 1,
     max_iter: int = 60,
+    hold_check: str = "record",
+    hold_band: float = HOLD_BAND,
+    hold: float = HOLD_DURATION,
 ) -> Initialisation:
     """Find and run the input that puts ``plant`` in psi_n, psi_a or psi_d with output ``y_d``.
 
@@ -482,7 +573,10 @@ def drive_to_state(
     decaying sinusoid (which only approximates psi_n^l) misses the window, ``l`` is corrected
     by a search on the plant.  psi_a/psi_d: ``u_bar`` is searched on the plant (the output at
     ``t_1`` grows with ``u_bar`` on both branches) until the output lands in the window.  The
-    plant is left in the state at ``t_1``.
+    final run plays the waveform found and, unless ``hold_check="off"``, holds the offset for
+    ``hold`` seconds to check the thesis's experimental acceptance condition (§4.2): the output
+    stays within ``y_d +/- hold_band`` from ``t_1`` to ``t_1 + hold``.  The plant is left in the
+    state at the end of that run.
 
     Parameters
     ----------
@@ -497,8 +591,13 @@ def drive_to_state(
     locus : NeutralLocus, optional
         For psi_n.  Default: the exact locus of ``plant.model`` when the plant has one; a rig
         needs a measured locus (:func:`measure_locus`).
-    thresholds, tolerance : see :func:`landing_window`
-        Default: ``y_d +/- 0.03`` V (thesis simulation tolerance).
+    thresholds : {"simulation", "experiment"}, optional
+        Landing windows, see :func:`landing_window`.  Default :func:`default_thresholds`:
+        ``"experiment"`` (Table 4.1, as in the thesis's experiments) on a DAQ device plant,
+        ``"simulation"`` (``y_d +/- tolerance``) on a model plant.  Table 4.1 has windows for
+        1, 2 and 4 Hz only.
+    tolerance : float
+        Half-width (V) of the simulation window (thesis: 0.03 V).
     window : (float, float), optional
         Explicit landing window (V); overrides ``thresholds``.
     cycles : float
@@ -509,6 +608,15 @@ def drive_to_state(
         Output samples averaged at ``t_1`` (1: the output at ``t_1`` itself; more for a noisy rig).
     max_iter : int
         Iterations of the offset search.
+    hold_check : {"record", "warn", "raise", "off"}
+        The acceptance check over the hold: ``"record"`` (default) measures it into
+        :attr:`Initialisation.hold_range` / :attr:`Initialisation.hold_ok`; ``"warn"`` also
+        emits :class:`HoldWindowWarning` and ``"raise"`` raises :class:`HoldWindowError` when
+        the output leaves the band; ``"off"`` skips the hold (the final run ends at ``t_1``).
+    hold_band : float
+        Half-width (V) of the acceptance band around ``y_d``; thesis 0.1 V.
+    hold : float
+        Length (s) of the checked hold after ``t_1``; thesis 2 s.
 
     Returns
     -------
@@ -517,9 +625,11 @@ def drive_to_state(
     Raises
     ------
     ValueError
-        If ``y_d`` cannot be reached.
+        If ``y_d`` cannot be reached, or Table 4.1 has no window for ``frequency``.
     ConvergenceError
         If the search does not land in the window within ``max_iter`` runs.
+    HoldWindowError
+        With ``hold_check="raise"``, if the output leaves ``y_d +/- hold_band`` during the hold.
 
     """
     k = _check_kind(kind)
@@ -529,11 +639,24 @@ def drive_to_state(
     f = _positive("frequency", frequency)
     if settle < 1:
         raise ValueError(f"settle: need at least 1 sample, got {settle}")
-    win = (
-        tuple(float(v) for v in window)
-        if window is not None
-        else landing_window(k, y_d, f, thresholds=thresholds, tolerance=tolerance)
-    )
+    if hold_check not in _HOLD_CHECKS:
+        raise ValueError(f"hold_check: expected one of {_HOLD_CHECKS}, got {hold_check!r}")
+    band = _positive("hold_band", hold_band)
+    hold_s = _positive("hold", hold)
+    if window is not None:
+        win = tuple(float(v) for v in window)
+        how = "window"
+    else:
+        how = default_thresholds(plant) if thresholds is None else thresholds
+        try:
+            win = landing_window(k, y_d, f, thresholds=how, tolerance=tolerance)
+        except ValueError as exc:
+            if thresholds is None:
+                raise ValueError(
+                    f"{exc} (thresholds='experiment' is the default on a DAQ device plant); "
+                    "pass thresholds='simulation' or an explicit window=(low, high) V"
+                ) from None
+            raise
     if len(win) != 2 or not win[0] <= win[1]:
         raise ValueError(f"window: expected (low, high) with low <= high, got {window!r}")
     lo, hi = (float(v) for v in plant.input_range)
@@ -568,8 +691,46 @@ def drive_to_state(
         lambda v: _measure(plant, make(v), settle), lo, hi, (win[0], win[1]), x0, max_iter, what
     )
     wave = make(x)
-    y_end = _measure(plant, wave, settle)
-    return Initialisation(k, wave, y_d, (win[0], win[1]), y_end, evals + 1, plant.snapshot(), l_inv)
+    accept: tuple[float, float] | None = None
+    held: tuple[float, float] | None = None
+    if hold_check == "off":
+        y_end = _measure(plant, wave, settle)
+    else:
+        n = len(wave.input)
+        n_hold = max(1, int(round(hold_s / ts)))
+        plant.reset(None)
+        yy = np.asarray(
+            plant.run_open_loop(np.concatenate([wave.input, np.full(n_hold, wave.offset)])),
+            dtype=float,
+        )
+        y_end = float(np.mean(yy[n + 1 - settle : n + 1]))  # as _measure: the output at t_1
+        accept = (y_d - band, y_d + band)
+        held = (float(np.min(yy[n:])), float(np.max(yy[n:])))
+    init = Initialisation(
+        k,
+        wave,
+        y_d,
+        (win[0], win[1]),
+        y_end,
+        evals + 1,
+        plant.snapshot(),
+        l_inv,
+        how,
+        accept,
+        held,
+    )
+    if init.hold_ok is False and hold_check in ("warn", "raise"):
+        assert held is not None and accept is not None
+        msg = (
+            f"{what}: the output left y_d +/- {band:g} V = [{accept[0]:g}, {accept[1]:g}] V "
+            f"during the {hold_s:g} s hold after t_1 (it spanned {held[0]:.4g} .. {held[1]:.4g} V; "
+            f"landed at {y_end:.4g} V in the {how} window [{win[0]:g}, {win[1]:g}] V); the "
+            "thesis's experiments accept an initial state only inside that band (§4.2)"
+        )
+        if hold_check == "raise":
+            raise HoldWindowError(msg)
+        warnings.warn(msg, HoldWindowWarning, stacklevel=2)
+    return init
 
 
 def measure_locus(

@@ -18,18 +18,25 @@
 //   * converts with comedi_to_physical / comedi_from_physical; a reading of code 0 or maxdata
 //     is out of range and becomes NaN (the runner then aborts the trial);
 //   * reads with comedi_data_read and writes with comedi_data_write, one instruction per
-//     channel per sample (software-timed, paced by the trial runner's clock).
+//     channel per sample (software-timed, paced by the trial runner's clock);
+//   * on close() (also from the destructor) ramps every output from its last value to 0 V at
+//     the connector at ComediOptions::close_ramp_rate (V/s at the actuator, default 500 V/s,
+//     the trial runner's Safety::ramp_rate), one write every close_ramp_period, instead of
+//     stepping the actuator to 0 V at once; then closes the device file.
 #pragma once
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <limits>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "device.hpp"
@@ -75,6 +82,11 @@ public:
     // comedi_to_physical / comedi_from_physical
     virtual double to_physical(unsigned data, const ComediPoly& poly) = 0;
     virtual unsigned from_physical(double volts, const ComediPoly& poly) = 0;
+    // Wait between two writes of the closing ramp (s).  Not a comedilib call: the real
+    // interface sleeps, the replay only adds the time up (ComediReplay::paused).
+    virtual void pause(double seconds) {
+        if (seconds > 0) std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    }
 };
 
 // comedilib's polynomial conversions, written out for the replay (the same arithmetic as
@@ -107,7 +119,9 @@ inline unsigned poly_from_physical(double volts, const ComediPoly& p) {
 // std::logic_error naming the step, the expected and the actual call.  A failing call
 // returns "-1 : message" (open too), and the message becomes error().  Converter results
 // are "rc : order origin c0 c1 ...".  Conversion
-// functions are pure and are not part of the protocol.  Blank lines and '#' comments are ignored.
+// functions are pure and are not part of the protocol, nor are the pauses of the closing ramp
+// (the replay does not sleep; paused() is their total).  Blank lines and '#' comments are
+// ignored.
 class ComediReplay final : public ComediApi {
 public:
     explicit ComediReplay(const std::string& protocol) {
@@ -131,6 +145,8 @@ public:
                                    " expected call(s) never made, the first: '" + steps_[pos_].call + "'");
     }
     std::vector<std::string> log() const { return log_; }
+    // Total time (s) the device asked to pause (the closing ramp), without sleeping.
+    double paused() const noexcept { return paused_; }
 
     bool open(const std::string& file) override { return expect("open " + file) != "-1"; }
     void close() override { expect("close"); }
@@ -169,6 +185,7 @@ public:
     }
     double to_physical(unsigned data, const ComediPoly& p) override { return poly_to_physical(data, p); }
     unsigned from_physical(double v, const ComediPoly& p) override { return poly_from_physical(v, p); }
+    void pause(double seconds) override { paused_ += seconds; }
 
 private:
     struct Step {
@@ -224,10 +241,25 @@ private:
     std::size_t pos_ = 0;
     std::vector<std::string> log_;
     std::string last_error_ = "protocol error";
+    double paused_ = 0.0;
 };
 
 struct ComediOptions {
     std::string calibration_file;  // softcal file; "" = comedilib's default path
+    // Closing ramp to 0 V: rate in the output channel's physical units per second (V/s at the
+    // actuator, converted to connector volts with the channel's calibration gain), and the time
+    // between two writes.  The default rate is the trial runner's Safety::ramp_rate.
+    double close_ramp_rate = 500.0;   // V/s
+    double close_ramp_period = 1e-3;  // s
+
+    void validate() const {
+        if (!(std::isfinite(close_ramp_rate) && close_ramp_rate > 0.0))
+            throw std::invalid_argument("comedi: close_ramp_rate must be a positive finite number of V/s, got " +
+                                        std::to_string(close_ramp_rate));
+        if (!(std::isfinite(close_ramp_period) && close_ramp_period > 0.0 && close_ramp_period <= 1.0))
+            throw std::invalid_argument("comedi: close_ramp_period must be in (0, 1] s, got " +
+                                        std::to_string(close_ramp_period));
+    }
 };
 
 class ComediDevice final : public Device {
@@ -240,6 +272,7 @@ public:
         if (inputs.empty()) throw std::invalid_argument("comedi: at least one input channel is needed");
         for (const auto& c : outputs) c.validate("output");
         for (const auto& c : inputs) c.validate("input");
+        opt_.validate();
         if (!api_->open(file_)) throw DeviceError("cannot open Comedi device '" + file_ + "': " + api_->error());
         open_ = true;
         try {
@@ -342,13 +375,38 @@ public:
             last_[i] = volts[i];
         }
     }
-    // Set every output to 0 V at the connector and close the device file.  Idempotent.
+    // Ramp every output to 0 V at the connector and close the device file.  Idempotent.
+    //
+    // All outputs move together, linearly from their last written value to 0 V, in as many
+    // steps (one every close_ramp_period, the first at once) as the channel needing the most
+    // requires so that none changes faster than close_ramp_rate at the actuator; the last step
+    // writes exactly 0 V.  An output already at 0 V gets one write of 0 V.  The device file is
+    // closed even if a write throws (the error is rethrown afterwards).
     void close() {
         if (!open_) return;
         open_ = false;
-        for (const Conv& c : out_conv_)
-            api_->data_write(c.sub, c.chan, c.range, c.aref, std::min(api_->from_physical(0.0, c.poly), c.maxdata));
-        api_->close();
+        std::exception_ptr failure;
+        try {
+            ramp_to_zero();
+        } catch (...) {
+            failure = std::current_exception();
+        }
+        try {
+            api_->close();
+        } catch (...) {
+            if (!failure) failure = std::current_exception();
+        }
+        if (failure) std::rethrow_exception(failure);
+    }
+    // Writes the closing ramp takes from the current outputs (at least 1).
+    std::size_t close_ramp_steps() const {
+        std::size_t steps = 1;
+        for (std::size_t i = 0; i < outs_.size(); ++i) {
+            const double per_step = opt_.close_ramp_rate * opt_.close_ramp_period / std::abs(outs_[i].cal.gain);
+            const double need = std::ceil(std::abs(last_[i]) / per_step - 1e-9);
+            if (need > double(steps)) steps = std::size_t(need);
+        }
+        return steps;
     }
     bool is_open() const noexcept { return open_; }
     const std::string& file() const noexcept { return file_; }
@@ -361,8 +419,24 @@ public:
         return k;
     }
     ComediApi& api() noexcept { return *api_; }
+    const ComediOptions& options() const noexcept { return opt_; }
 
 private:
+    void ramp_to_zero() {
+        const std::size_t steps = close_ramp_steps();
+        const std::vector<double> from = last_;
+        for (std::size_t s = 1; s <= steps; ++s) {
+            if (s > 1) api_->pause(opt_.close_ramp_period);
+            const double frac = s == steps ? 0.0 : 1.0 - double(s) / double(steps);
+            for (std::size_t i = 0; i < out_conv_.size(); ++i) {
+                const Conv& c = out_conv_[i];
+                const double v = from[i] * frac;
+                api_->data_write(c.sub, c.chan, c.range, c.aref, std::min(api_->from_physical(v, c.poly), c.maxdata));
+                last_[i] = v;
+            }
+        }
+    }
+
     struct Conv {
         unsigned sub, chan, range, aref, maxdata;
         ComediPoly poly;
