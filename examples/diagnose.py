@@ -14,8 +14,10 @@ noise, invisible on a loop plot - then, as a user would:
 3. compares the verdict with the truth (case/truth.json) and writes diagnosis.json,
    diagnosis.png and the augmented model augmented.npz (``preisach.load_model``).
 
-The same from the command line:
-``preisach diagnose MODEL case/*.npz --identification case/identification.npz --json R.json``.
+The same from the command line (the identification sweep is given once, as identification -
+not also among the diagnosed recordings; a duplicate would be left out with a warning):
+``preisach diagnose MODEL case/{wiping_out,cml,minor_loops,multisine,step_hold,noise}.npz
+--identification case/identification.npz --json R.json``.
 """
 
 import json

@@ -84,17 +84,11 @@ def test_safety_clamp_slew_and_ramp_after_abort(model, tmp_path):
     np.testing.assert_allclose(np.diff(rec.t), TS)
 
 
-def test_ramp_faster_than_the_slew_limit_is_rejected(model, tmp_path):
-    msg = r"ramp_rate = 20000 V/s exceeds slew_rate = 10000 V/s"
-    with pytest.raises(ValueError, match="^SafetyLimits: " + msg):
+def test_ramp_faster_than_the_slew_limit_is_rejected():
+    msg = r"^safety: ramp_rate = 20000.* V/s exceeds slew_rate = 10000.* V/s"
+    with pytest.raises(ValueError, match=msg):
         daq.SafetyLimits(slew_rate=10_000.0, ramp_rate=20_000.0)
     daq.SafetyLimits(slew_rate=10_000.0, ramp_rate=10_000.0)  # equal is fine
-    # the runner's own limits object (not checked at construction) is checked by run_trial
-    rig = daq.virtual_ss15(model)
-    bare = daq._core.DaqSafety(slew_rate=10_000.0, ramp_rate=20_000.0)
-    with pytest.raises(ValueError, match="^run_trial: safety: " + msg):
-        daq.run_trial(rig, np.zeros(5), tmp_path / "r.csv", sample_time=TS, safety=bare)
-    assert not (tmp_path / "r.csv").exists()
 
 
 def test_out_of_range_reading_aborts(model, tmp_path):

@@ -259,3 +259,77 @@ def test_argument_errors():
         diagnose(m, recs, initial_states=["unknown"])
     with pytest.raises(ValueError, match="cv"):
         diagnose(m, recs, cv="folds")
+
+
+def test_identification_recording_is_not_diagnosed_twice():
+    """A recording that is also identification data is left out of the diagnosed set."""
+    m, recs = _recs_with("none")
+    lines: list[str] = []
+    copy = Recording.from_arrays(t=recs[0].t, u=recs[0].u.copy(), y=recs[0].y.copy())
+    with pytest.warns(UserWarning, match="same samples as an identification recording"):
+        rep = diagnose(
+            m, recs, identification=copy, candidates=["gain_offset"], progress=lines.append
+        )
+    assert lines[0].startswith("2 recordings (1 for identification)")
+    assert rep.verdict == "none"
+    with (
+        pytest.raises(ValueError, match="every recording is also an identification recording"),
+        pytest.warns(UserWarning, match="same samples"),
+    ):
+        diagnose(m, recs[:1], identification=copy)
+
+
+@pytest.mark.slow
+def test_heldout_outputs_do_not_enter_the_feedback_fit():
+    """Perturbing the measured output inside held-out blocks leaves the fitted values alone.
+
+    The non-congruence candidate is fitted in series-parallel form (the relays see the input
+    shifted by the feedback of the measured output); the held-out blocks' measurements must
+    not drive it, though the relays' memory carries their input into later training blocks.
+    """
+    from preisach.diagnose.candidates import NonCongruenceCandidate
+    from preisach.diagnose.engine import Chain, Context, make_folds
+
+    case = make_case("non_congruence", seed=5, scale=0.2, effect_size=3.5)
+    model = case.identify()
+
+    def fit(recordings):
+        recs = prepare_recordings(model, recordings, identification=[case.identification])
+        ctx = Context(model, recs, refit=True)
+        fold = make_folds(recs, "blocks")[0]
+        cand = NonCongruenceCandidate()
+        cand.prepare(ctx)
+        base = ctx.refit_base([], ctx.given, fold.train, False)
+        chain = ctx.fit(cand, Chain(base), fold.train)
+        return chain.effects[-1].x, chain.base.theta, fold.test
+
+    x0, theta0, test = fit(case.recordings)
+    rng = np.random.default_rng(0)
+    moved = []
+    for r, m in zip(case.recordings, test):
+        y = r.y + np.where(m, rng.normal(0.0, 0.3, r.y.size), 0.0)  # 300 mV, held out only
+        moved.append(Recording.from_arrays(t=r.t, u=r.u, y=y, metadata=dict(r.metadata)))
+    assert sum(int(m.sum()) for m in test) > 1000
+    x1, theta1, _ = fit(moved)
+    np.testing.assert_allclose(x1, x0, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(theta1, theta0, rtol=1e-9, atol=1e-12)
+
+
+def test_own_generator_shapes_are_not_the_candidates():
+    """The own truths' rate smoothing and feedback centre are random, not the candidates'."""
+    from preisach.diagnose.cases import _truth_params
+
+    m = PreisachModel.builtin("ss15-1hz", levels=41)
+    lo, span = m.y_min, m.y_max - m.y_min
+    nc = [_truth_params("non_congruence", np.random.default_rng(s), m) for s in range(40)]
+    share = np.array([(p["y_c"] - lo) / span for p in nc])
+    assert np.all((share >= 0.25) & (share <= 0.75)) and np.ptp(share) > 0.3
+    assert np.all(np.abs(share - 0.5) > 1e-6)
+    assert {p["sign"] for p in nc} == {-1.0, 1.0}
+    tau = np.array(
+        [
+            _truth_params("rate_dependence", np.random.default_rng(s), m)["rho_tau"]
+            for s in range(40)
+        ]
+    )
+    assert np.all((tau >= 5e-3) & (tau <= 0.1)) and tau.max() / tau.min() > 5

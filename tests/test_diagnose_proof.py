@@ -2,21 +2,25 @@
 
 Every effect kind and a null case, on both generators of :mod:`preisach.diagnose.cases`:
 
-* ``own`` - this package's truths, in functional forms unlike the candidates' (a rate-scaled
-  Everett function, a mode driven by the first-order-hold output, the logarithmic creep law,
-  a continuous first-order measurement lag, a random multi-sine offset, a moving model with
-  saturating ``tanh`` feedback);
-* ``rig`` - the virtual SS15 rig's C++ physics blocks measured through its DAQ (input lag,
-  structural mode, Prony creep, delay / moving average at 20 kHz, random-walk offset drift,
-  the moving Preisach stage).
+* ``own`` - the different-form proof: this package's truths, in functional forms unlike the
+  candidates' and with randomised shape parameters (a rate-scaled Everett function with a
+  random rate smoothing, a mode driven by the first-order-hold output, the logarithmic creep
+  law, a continuous first-order measurement lag, a random multi-sine offset, a moving model
+  with saturating ``tanh`` feedback about a random centre);
+* ``rig`` - the same-form check: the virtual SS15 rig's C++ physics blocks measured through
+  its DAQ (input lag, structural mode, Prony creep, delay / moving average at 20 kHz,
+  random-walk offset drift, the moving Preisach stage), largely the candidates' own forms.
 
 Each case is an FOD identification sweep plus wiping-out, CML, minor-loop, multi-sine,
 step-and-hold and filtered-noise experiments, with 1 mV noise and 14-bit quantisation; the
 effect's unabsorbable part is 3.5 x the noise (invisible on a loop plot).  A model is
 identified from the sweep (which carries the effect too), the experiments are diagnosed with
-every candidate, and the verdict, the held-out improvement (>= 30 %) and the fitted
-parameters are checked against the truth.  Recordings are short (``scale`` 0.2) and only the
-first effect is selected, to keep the 14 cases in about a minute on two processes;
+every candidate, and the verdict, the held-out improvement (>= 30 %) and physically
+meaningful quantities of the fitted effect (:func:`preisach.diagnose.cases.physical_checks`:
+a lag, a mode, a creep movement, a loop widening, a drift's size, a feedback slope) are
+checked against the truth.  Recordings are short (``scale`` 0.2) and only the first effect is
+selected in the 14 fixed cases, to keep them in about a minute on two processes; one more
+case runs the full selection and must keep nothing beyond the right effect.
 ``scripts/diagnosis_study.py`` runs the randomised study with the full selection.
 """
 
@@ -28,7 +32,6 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 from preisach.diagnose.cases import EFFECT_KINDS, run_case
 
@@ -37,21 +40,26 @@ pytestmark = pytest.mark.slow
 SCALE = 0.2
 SIZE = 3.5
 SEED = 31
-CASES = [(g, k) for g in ("own", "rig") for k in ("none", *EFFECT_KINDS)]
+CASES = [(g, k, 1) for g in ("own", "rig") for k in ("none", *EFFECT_KINDS)]
+# full selection (up to 3 effects) on the different-form case whose first effect explains the
+# least of its residual: the place a spurious second effect would be kept
+FULL = ("own", "rate_dependence", 3)
 
 
-def _run(gen: str, kind: str) -> dict[str, Any]:
+def _run(gen: str, kind: str, max_effects: int) -> dict[str, Any]:
     """One case in a worker process, with warnings as errors as in the test session."""
     warnings.simplefilter("error")
-    return run_case(kind, generator=gen, seed=SEED, effect_size=SIZE, scale=SCALE, max_effects=1)
+    return run_case(
+        kind, generator=gen, seed=SEED, effect_size=SIZE, scale=SCALE, max_effects=max_effects
+    )
 
 
 @pytest.fixture(scope="module")
-def outcomes() -> dict[tuple[str, str], dict[str, Any]]:
+def outcomes() -> dict[tuple[str, str, int], dict[str, Any]]:
     """All cases, diagnosed on two processes (the cases are independent)."""
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(2, mp_context=ctx) as ex:
-        futures = {c: ex.submit(_run, *c) for c in CASES}
+        futures = {c: ex.submit(_run, *c) for c in [FULL, *CASES]}
         return {c: f.result() for c, f in futures.items()}
 
 
@@ -60,47 +68,57 @@ def _blocks(truth: dict[str, Any]) -> dict[str, dict[str, Any]]:
     return {b["kind"]: b for b in p.get("input_blocks", []) + p.get("output_blocks", [])}
 
 
-def _check_parameters(gen: str, kind: str, p: dict[str, float], truth: dict[str, Any]) -> None:
-    """Fitted parameters against the generator's truth."""
-    s = truth["strength"]
-    if kind == "delay":  # a pure delay fitted to a first-order lag / moving average: its lag
-        lag = s if gen == "own" else truth["params"]["lag"]
-        assert p["tau"] == pytest.approx(lag, rel=0.25)
-    elif kind == "structural_resonance":
-        if gen == "own":
-            f, z, m = truth["params"]["f_n"], truth["params"]["zeta"], s
+#: Relative tolerance of each physical quantity (fitted vs truth).  Same-form (rig) fits are
+#: held tighter where the candidate is the truth's own form; the different-form (own) fits
+#: measure a quantity the two forms share, so they get more room.  The rate-dependence
+#: widening extrapolates a different form to a 1 Hz major loop: a factor of 2.
+TOLERANCE = {
+    "lag": (0.25, 0.25),
+    "f_n": (0.03, 0.03),
+    "zeta": (0.5, 0.5),
+    "participation": (0.25, 0.25),
+    "creep_50ms_1s": (0.3, 0.3),
+    "peak_to_peak": (0.3, 0.3),
+    "feedback_slope": (0.5, 0.2),
+}
+
+
+def _check_parameters(gen: str, kind: str, r: dict[str, Any]) -> None:
+    """Physical quantities of the fitted effect against the generator's truth."""
+    checks = r["checks"]
+    assert checks, "a right verdict must come with physical checks"
+    for name, c in checks.items():
+        f, t = c["fitted"], c["truth"]
+        assert f * t > 0, f"{name}: fitted {f:.4g} has the wrong sign (truth {t:.4g})"
+        if name == "widening":  # loops wider at 1 Hz than at 0.05 Hz, by about the truth's
+            assert 0.5 < f / t < 2.0, f"widening {f:.4g} V vs truth {t:.4g} V"
         else:
-            mode = _blocks(truth)["structural_mode"]
-            f, z, m = mode["frequency"], mode["damping"], 1.0
-        assert p["f_n"] == pytest.approx(f, rel=0.03)
-        assert p["zeta"] == pytest.approx(z, rel=0.5)
-        assert p["participation"] == pytest.approx(m, rel=0.25)
-    elif kind == "creep":  # log law or the rig's equal-weight lags: creep per decade of time
-        per_decade = np.mean([v for k, v in p.items() if k.startswith("c_")])
-        rate = s if gen == "own" else _blocks(truth)["creep"]["rate"]
-        assert 0.33 * rate < per_decade < 3 * rate
-    elif kind == "non_congruence":  # the linear feedback gain
-        assert np.sign(p["a"]) == np.sign(s)
-        assert p["a"] == pytest.approx(s, rel=0.5 if gen == "own" else 0.2)
-    elif kind == "sensor_drift":
-        assert p["peak_to_peak"] > 3 * truth["sigma"]
-    elif kind == "rate_dependence":
-        if gen == "rig" and "tau" in p:  # the rig's block is an input lag
-            assert p["tau"] == pytest.approx(_blocks(truth)["input_lag"]["time_constant"], rel=0.3)
-        else:  # loops wider at higher rates, whichever form was kept
-            assert p.get("tau", p.get("w_ref", p.get("c"))) > 0
+            rel = TOLERANCE[name][0 if gen == "own" else 1]
+            assert f == pytest.approx(t, rel=rel), f"{name}: fitted {f:.4g}, truth {t:.4g}"
+    if gen == "rig" and kind == "rate_dependence" and "tau" in r["params"]:
+        # the rig's block is an input lag: the same form, so the same time constant
+        tau = _blocks(r["truth"])["input_lag"]["time_constant"]
+        assert r["params"]["tau"] == pytest.approx(tau, rel=0.3)
 
 
-@pytest.mark.parametrize("gen, kind", CASES, ids=[f"{g}-{k}" for g, k in CASES])
-def test_concealed_effect(outcomes, gen, kind):
-    r = outcomes[(gen, kind)]
+@pytest.mark.parametrize("gen, kind, max_effects", CASES, ids=[f"{g}-{k}" for g, k, _ in CASES])
+def test_concealed_effect(outcomes, gen, kind, max_effects):
+    r = outcomes[(gen, kind, max_effects)]
     assert r["verdict"] == kind, r["summary"]
     if kind == "none":
         assert r["effects"] == [] and r["rmse_after"] <= r["rmse_before"]
         return
     assert r["size"] == pytest.approx(SIZE, rel=0.5)  # concealed: a few times the noise
     assert r["gain"] >= 0.30, r["summary"]
-    _check_parameters(gen, kind, r["params"], r["truth"])
+    _check_parameters(gen, kind, r)
+
+
+def test_full_selection_keeps_no_extra_effect(outcomes):
+    """With up to three effects allowed, the concealed one is kept and nothing else."""
+    r = outcomes[FULL]
+    assert r["effects"] == [FULL[1]], r["summary"]
+    assert r["gain"] >= 0.30
+    _check_parameters(FULL[0], FULL[1], r)
 
 
 from _paths import YAN9A as DATA  # noqa: E402

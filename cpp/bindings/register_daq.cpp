@@ -100,7 +100,7 @@ void register_daq(py::module_& m) {
         });
 
     py::class_<pd::Safety>(m, "DaqSafety",
-                           "Safety limits: output [u_min, u_max] (V at the actuator), slew_rate and ramp_rate (V/s), "
+                           "Safety limits: output [u_min, u_max] (V at the actuator), slew_rate and ramp_rate <= slew_rate (V/s), "
                            "primary input [y_min, y_max], and the budgets of missed deadlines: in total and in a row (< 0: unlimited).")
         .def(py::init([](double u_min, double u_max, double slew_rate, double ramp_rate, double y_min, double y_max,
                          long long max_missed, long long max_in_a_row) {

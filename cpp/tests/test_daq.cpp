@@ -210,6 +210,13 @@ TEST_CASE("real-time budget: a stall of many periods aborts, a lone late sample 
     Safety zero;
     zero.max_consecutive_missed = 0;
     CHECK_THROWS_AS(zero.validate(), std::invalid_argument);
+
+    Safety fast_ramp;
+    fast_ramp.slew_rate = 1e4;
+    fast_ramp.ramp_rate = 2e4;
+    CHECK_THROWS_AS(fast_ramp.validate(), std::invalid_argument);
+    fast_ramp.ramp_rate = 1e4;  // equal is fine
+    CHECK_NOTHROW(fast_ramp.validate());
 }
 
 TEST_CASE("runner safety: clamp and slew limit, NaN command aborts and ramps to 0 V") {
@@ -220,24 +227,25 @@ TEST_CASE("runner safety: clamp and slew limit, NaN command aborts and ramps to 
     opt.path = tmpfile("safety");
     opt.fsync = false;
     Safety s;
-    s.slew_rate = 10000.0;  // 10 V per 1 ms sample
-    s.ramp_rate = 20000.0;  // 20 V per sample on the way down
+    s.slew_rate = 20000.0;  // 20 V per 1 ms sample
+    s.ramp_rate = 10000.0;  // 10 V per sample on the way down (at most the slew rate)
     TrialRunner runner;
     const auto res = runner.run(rig, ctl, opt, s);
     CHECK(res.end_status.rfind("aborted: controller returned a non-finite output at sample 150", 0) == 0);
     CHECK(res.samples == 151);                      // 150 applied + the sample that saw the NaN
-    CHECK(res.ramp_samples == 7);                   // 135 V -> 0 V in steps of 20 V
+    CHECK(res.ramp_samples == 14);                  // 135 V -> 0 V in steps of 10 V
     CHECK(res.final_output == 0.0);
     CHECK(rig.actuator_voltage() == doctest::Approx(0.0).epsilon(1e-12).scale(1.0));
     const auto l = lines_of(opt.path);
-    // u column: 10, 20, ... then the 135 V clamp
+    // u column: 20, 40, ... then the 135 V clamp
     CHECK(l[l.size() - 1].rfind("# end_status: aborted:", 0) == 0);
     std::vector<double> u;
     for (const auto& line : l)
         if (!line.empty() && line[0] != '#' && line[0] != 't') u.push_back(std::stod(line.substr(line.find(',') + 1)));
-    REQUIRE(u.size() == 158);
+    REQUIRE(u.size() == 165);
     for (std::size_t k = 1; k < u.size(); ++k) CHECK(std::abs(u[k] - u[k - 1]) <= 20.0 + 1e-9);
-    CHECK(u[0] == doctest::Approx(-0.02 + 10.0));  // from the DAC at 0 V: V_in = -0.02 V
+    CHECK(u[0] == doctest::Approx(-0.02 + 20.0));  // from the DAC at 0 V: V_in = -0.02 V
+    for (std::size_t k = 151; k + 1 < u.size(); ++k) CHECK(u[k - 1] - u[k] == doctest::Approx(10.0));
     CHECK(u[149] == doctest::Approx(135.0));
     CHECK(u.back() == 0.0);
     std::remove(opt.path.c_str());

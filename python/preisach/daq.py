@@ -80,6 +80,7 @@ __all__ = [
 ]
 
 Channel = _core.DaqChannel
+SafetyLimits = _core.DaqSafety
 WaveformController = _core.DaqWaveformController
 PIController = _core.DaqPIController
 CallbackController = _core.DaqCallbackController
@@ -87,79 +88,6 @@ comedi_available = _core.comedi_available
 
 Device = Union[_core.VirtualRig, _core.ComediDevice, _core.DaqDevice]
 PathLike = Union[str, "os.PathLike[str]"]
-
-
-def _check_ramp_rate(slew_rate: float, ramp_rate: float, where: str) -> None:
-    """Reject a ramp to 0 V faster than the slew limit (the C++ runner does not slew-limit it)."""
-    if float(ramp_rate) > float(slew_rate):
-        raise ValueError(
-            f"{where}: ramp_rate = {float(ramp_rate):g} V/s exceeds slew_rate = "
-            f"{float(slew_rate):g} V/s; the ramp to 0 V after an abort would change the output "
-            "faster than the slew limit allows: use ramp_rate <= slew_rate"
-        )
-
-
-class SafetyLimits(_core.DaqSafety):
-    """Safety limits of a trial (the runner's ``DaqSafety``, validated).
-
-    Parameters
-    ----------
-    u_min, u_max : float
-        Output limits at the actuator (V); must be finite and contain 0 V.  Default
-        +/-135 V, what the SA11 amplifier delivers (thesis section 3.1).
-    slew_rate : float
-        Largest output change (V/s); ``inf`` for none.
-    ramp_rate : float
-        Rate of the ramp to 0 V after an abort, a stop request or at the end (V/s); at most
-        ``slew_rate``.
-    y_min, y_max : float
-        Limits of the primary input (its physical unit, V); a reading outside aborts.
-    max_missed_deadlines : int
-        Abort when more deadlines than this are missed in total (< 0: no limit, the default).
-    max_consecutive_missed : int
-        Abort when more deadlines than this are missed in a row (default 20; < 0: no limit).
-
-    Raises
-    ------
-    ValueError
-        If ``ramp_rate > slew_rate`` (checked here: the C++ ``Safety::validate`` does not, and
-        the runner's ramp to 0 V is not slew limited), or a limit is invalid (the C++ check:
-        ``u_min <= 0 <= u_max`` finite, positive rates, ``y_min < y_max``,
-        ``max_consecutive_missed != 0``).
-
-    """
-
-    def __init__(
-        self,
-        u_min: float = -135.0,
-        u_max: float = 135.0,
-        slew_rate: float = 1e4,
-        ramp_rate: float = 500.0,
-        y_min: float = -math.inf,
-        y_max: float = math.inf,
-        max_missed_deadlines: int = -1,
-        max_consecutive_missed: int = 20,
-    ) -> None:
-        _check_ramp_rate(slew_rate, ramp_rate, "SafetyLimits")
-        super().__init__(
-            u_min,
-            u_max,
-            slew_rate,
-            ramp_rate,
-            y_min,
-            y_max,
-            max_missed_deadlines,
-            max_consecutive_missed,
-        )
-
-    def __repr__(self) -> str:
-        return (
-            f"SafetyLimits(u_min={self.u_min:g}, u_max={self.u_max:g}, "
-            f"slew_rate={self.slew_rate:g}, ramp_rate={self.ramp_rate:g}, "
-            f"y_min={self.y_min:g}, y_max={self.y_max:g}, "
-            f"max_missed_deadlines={self.max_missed_deadlines}, "
-            f"max_consecutive_missed={self.max_consecutive_missed})"
-        )
 
 
 def channel(
@@ -540,8 +468,6 @@ def run_trial(
     Exception
         What a Python callback controller or the ``progress`` callback raised, or a device
         error, re-raised after the file was finished (``end_status``/``end_reason`` name it).
-    ValueError
-        If ``safety.ramp_rate`` exceeds ``safety.slew_rate``.
 
     """
     if not isinstance(controller, _core.DaqController):
@@ -549,8 +475,6 @@ def run_trial(
     meta = _check_metadata(metadata)
     if "end_status" in meta:
         raise ValueError("metadata key 'end_status' is reserved: the runner writes it")
-    if safety is not None:  # a bare _core.DaqSafety is not checked at construction
-        _check_ramp_rate(safety.slew_rate, safety.ramp_rate, "run_trial: safety")
     runner = _core.DaqTrialRunner()
     box: dict[str, Any] = {}
     done = threading.Event()

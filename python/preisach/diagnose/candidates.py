@@ -102,7 +102,7 @@ class Candidate:
         return [np.array([0.0 if s.lo <= 0.0 <= s.hi else s.lo for s in self.specs(ctx)])]
 
     def n_params(self, ctx: Context) -> int:
-        """Return the number of fitted parameters (for the parsimony penalty)."""
+        """Return the number of fitted parameters (for the parsimony preference)."""
         return len(self.specs(ctx))
 
     # -- model ------------------------------------------------------------------------------
@@ -451,7 +451,15 @@ class SensorNonlinearityCandidate(Candidate):
 
 
 class NonCongruenceCandidate(Candidate):
-    """Minor loops that depend on the output level: the output feeds back on the relays' input."""
+    """Minor loops that depend on the output level: the output feeds back on the relays' input.
+
+    The feedback ``u_eff = u + a d + b d^2 / S + c d^3 / S^2``, ``d = y_prev - y_c``, is fitted
+    with its zero ``y_c`` (the output level at which the relays see the applied input
+    unchanged) as a parameter inside the output range: a moving model's feedback is zero at
+    the device's own reference state, which need not be mid-range, and a constant input shift
+    is not absorbed by the Preisach weights where the relays' input is clamped at the range
+    ends.  ``S`` is half the output span (fixed).
+    """
 
     name = "non_congruence"
     side = "feedback"
@@ -459,8 +467,9 @@ class NonCongruenceCandidate(Candidate):
     block_type = OutputFeedback
 
     def prepare(self, ctx: Context) -> None:
-        self.fixed = {"y_c": ctx.y_centre, "span": ctx.y_half_span}
+        self.fixed = {"span": ctx.y_half_span}
         self.limit = ctx.u_span / max(ctx.y_span, 1e-12)
+        self.y_lo, self.y_hi = sorted((ctx.y_lo, ctx.y_hi))
 
     def specs(self, ctx: Context) -> list[ParamSpec]:
         g = self.limit
@@ -468,6 +477,7 @@ class NonCongruenceCandidate(Candidate):
             ParamSpec("a", "V/V", -g, g, 0.01 * g),
             ParamSpec("b", "V/V", -g, g, 0.01 * g),
             ParamSpec("c", "V/V", -g, g, 0.01 * g),
+            ParamSpec("y_c", "V", self.y_lo, self.y_hi, 0.01 * (self.y_hi - self.y_lo)),
         ]
 
     def starts(self, ctx: Context) -> list[Array]:
@@ -475,23 +485,44 @@ class NonCongruenceCandidate(Candidate):
         # input over which the relays stay saturated after every reversal from saturation
         # (the feedback shifts their input by up to a * span), which the weights cannot
         # follow.  So the gain is scanned densely, in steps that shift the relays' input by
-        # 0.6 % of the input span at the ends of the output range; the optimiser starts from
-        # the best point.
+        # 0.6 % of the input span at the ends of the output range, with the zero at each of
+        # five levels across the output range; the optimiser starts from the best three of
+        # those five scans' winners and a few curved starts.
         g = self.limit
-        cands = [np.array([a, 0.0, 0.0]) for a in np.linspace(-g, g, 161)]
-        cands += [np.array([0.0, s * f * g, 0.0]) for s in (-1, 1) for f in (0.01, 0.05)]
-        return ctx.grid_search(self, cands, top=1)
+        lo, hi = self.y_lo, self.y_hi
+        mid = 0.5 * (lo + hi)
+        best = [
+            ctx.grid_search(
+                self, [np.array([a, 0.0, 0.0, lo + f * (hi - lo)]) for a in np.linspace(-g, g, 161)]
+            )[0]
+            for f in (0.1, 0.3, 0.5, 0.7, 0.9)
+        ]
+        best += [np.array([0.0, s * f * g, 0.0, mid]) for s in (-1, 1) for f in (0.01, 0.05)]
+        return ctx.grid_search(self, best, top=3)
 
     def params(self, x: Array) -> dict[str, Any]:
-        return {"a": float(x[0]), "b": float(x[1]), "c": float(x[2]), **self.fixed}
+        return {
+            "a": float(x[0]),
+            "b": float(x[1]),
+            "c": float(x[2]),
+            "y_c": float(x[3]),
+            **self.fixed,
+        }
+
+    def slope(self, x: Array) -> float:
+        """Secant slope (V/V) of the feedback over 10-90 % of the output range."""
+        b = self.block(x, 1.0)
+        y = self.y_lo + (self.y_hi - self.y_lo) * np.array([0.1, 0.9])
+        v = b.run(y)
+        return float((v[1] - v[0]) / (y[1] - y[0]))
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         return (
             f"minor loops are not congruent: the output feeds back on the switching thresholds by "
-            f"{_pm(x[0], _sd(cov, 0))} V per V of output (moving Preisach model; quadratic and "
-            f"cubic terms {_pm(x[1], _sd(cov, 1))} and {_pm(x[2], _sd(cov, 2))} V/V), so loops "
-            "between the same inputs change with the "
-            "output level; "
+            f"{self.slope(x):.3g} V per V of output on average over the output range (moving "
+            f"Preisach model; {_pm(x[0], _sd(cov, 0))} V/V at {_pm(x[3], _sd(cov, 3))} V, "
+            f"quadratic and cubic terms {_pm(x[1], _sd(cov, 1))} and {_pm(x[2], _sd(cov, 2))} "
+            "V/V), so loops between the same inputs change with the output level; "
             "a classical Preisach model cannot describe this - keep the feedback block"
         )
 

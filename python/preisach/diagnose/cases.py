@@ -14,8 +14,9 @@ The generators use functional forms that differ from diagnosis's candidates on p
 * ``rate_dependence`` - the Everett function scaled by the rate: the output blends the
   model with a *fast* model of the same range whose hysteretic (off-diagonal) relay mass is
   larger and reversible mass smaller, with weight ``s (1 - exp(-rho / rho_0))`` of the
-  low-passed input rate ``rho = |du/dt|`` [play operator with power-law rate-dependent width
-  on the input];
+  input rate ``rho = |du/dt|`` low-passed with a time constant ``rho_tau`` drawn
+  log-uniformly in 5-100 ms per case [an input lag, a play operator with power-law
+  rate-dependent width on the input, or a rate-scaled loop width];
 * ``structural_resonance`` - a second-order mode driven by the linearly interpolated
   (first-order hold) Preisach output, solved exactly in continuous time, participation ``s``
   [the same physics discretised exactly under a zero-order hold];
@@ -28,13 +29,24 @@ The generators use functional forms that differ from diagnosis's candidates on p
 * ``sensor_drift`` - a slow random offset per recording: a ramp plus three sinusoids of
   random periods (8-60 s) and phases, amplitude ``s`` [a per-recording cubic spline in time];
 * ``non_congruence`` - a moving Preisach model with saturating feedback
-  ``u_eff[k] = u[k] + s Y tanh((y[k-1] - y_c) / Y)``, ``y_c`` the mid output and ``Y`` a
-  quarter of the output span [output feedback with linear, quadratic and cubic terms].
+  ``u_eff[k] = u[k] + s Y tanh((y[k-1] - y_c) / Y)``, with the centre ``y_c`` drawn per case
+  anywhere in the middle half of the output range and the saturation scale ``Y`` between 0.2
+  and 0.5 of the output span [output feedback with linear, quadratic and cubic terms about
+  the *mid* output, so the truth's centre and shape are not the candidate's].
+
+The randomised shape parameters (``rho_tau``, ``y_c``, ``Y``) are drawn independently of the
+candidates' fixed constants (the loop-width candidate smooths the rate over
+``max(20 ms, 4 dt)``, the feedback candidate expands about the mid output), so a match of the
+two is a coincidence of one case, not a property of the proof.
 
 ``kind="none"`` makes the null case: the same experiments without any effect.
 
 ``generator="rig"`` takes the truth from the virtual SS15 rig instead (:mod:`preisach.daq`,
-its C++ blocks :mod:`preisach.blocks`), measured through its DAQ:
+its C++ blocks :mod:`preisach.blocks`), measured through its DAQ.  Its blocks are largely the
+candidates' own forms (an input lag, a second-order mode, a Prony series, a delay, a moving
+Preisach stage with linear feedback), so the rig generator is the *same-form check*: it shows
+that diagnosis finds and measures an effect whose form it has; the ``own`` generator is the
+different-form proof.
 
 * ``rate_dependence`` - ``InputLag``: the amplifier's RC lag before the relays.  This is the
   rig's only rate-dependent mechanism; it widens loops in proportion to the input rate (to
@@ -78,7 +90,7 @@ from ..noise import uniform_filtered_noise
 from ..recording import Recording
 from ..waveforms import cml_input, fod_sweep, legs, wiping_out_input
 
-__all__ = ["EFFECT_KINDS", "Case", "case_inputs", "make_case", "run_case"]
+__all__ = ["EFFECT_KINDS", "Case", "case_inputs", "make_case", "physical_checks", "run_case"]
 
 Array = NDArray[np.float64]
 PathLike = Union[str, "os.PathLike[str]"]
@@ -224,7 +236,11 @@ def _log_creep(y: Array, t0: float, dt: float) -> Array:
 def _moving(
     model: PreisachModel, u: Array, state: State, a: float, yc: float, span: float
 ) -> Array:
-    """Simulate a moving model with feedback ``u_eff = u + a span tanh((y_prev - yc) / span)``."""
+    """Simulate a moving model with feedback ``u_eff = u + a span tanh((y_prev - yc) / span)``.
+
+    ``a`` is the feedback's slope at ``yc`` (V/V), ``yc`` its centre and ``span`` its
+    saturation scale (V).
+    """
     sim = model.simulator(state)
     y = np.empty_like(u)
     prev = model.readout(state)
@@ -250,9 +266,7 @@ class _Truth:
         m, p, dt = self.model, self.params, self.dt
         s0 = m.negative_saturation()
         if self.kind == "non_congruence" and strength != 0:
-            return _moving(
-                m, u, s0, strength, 0.5 * (m.y_min + m.y_max), 0.25 * (m.y_max - m.y_min)
-            )
+            return _moving(m, u, s0, strength, p["y_c"], p["Y"])
         y = m.simulate(u, s0, sample_time=dt).output
         if self.kind == "none" or strength == 0:
             return y
@@ -281,17 +295,28 @@ class _Truth:
         raise ValueError(f"kind: unknown effect {self.kind!r}")  # pragma: no cover
 
 
-def _truth_params(kind: str, rng: np.random.Generator) -> dict[str, float]:
+def _truth_params(kind: str, rng: np.random.Generator, model: PreisachModel) -> dict[str, float]:
+    """Random shape parameters of an ``own`` truth (units: V/s, s, Hz, V)."""
     if kind == "rate_dependence":
-        return {"rho_0": float(rng.uniform(150.0, 600.0)), "rho_tau": 0.02}
+        return {
+            "rho_0": float(rng.uniform(150.0, 600.0)),
+            "rho_tau": float(10 ** rng.uniform(math.log10(5e-3), math.log10(0.1))),
+        }
     if kind == "structural_resonance":
         return {"f_n": float(rng.uniform(25.0, 60.0)), "zeta": float(rng.uniform(0.01, 0.05))}
     if kind == "creep":
         return {"t0": float(rng.uniform(0.01, 0.1))}
     if kind == "sensor_drift":
         return {}
-    if kind in ("delay", "non_congruence", "none"):
-        return {"sign": float(rng.choice([-1.0, 1.0]))} if kind == "non_congruence" else {}
+    if kind == "non_congruence":
+        lo, span = model.y_min, model.y_max - model.y_min
+        return {
+            "sign": float(rng.choice([-1.0, 1.0])),
+            "y_c": float(lo + span * rng.uniform(0.25, 0.75)),
+            "Y": float(span * rng.uniform(0.2, 0.5)),
+        }
+    if kind in ("delay", "none"):
+        return {}
     raise ValueError(f"kind: expected one of {EFFECT_KINDS + ('none',)}, got {kind!r}")
 
 
@@ -306,6 +331,9 @@ class Case:
     identification: Recording
     recordings: list[Recording]
     truth: dict[str, Any] = field(default_factory=dict)
+    #: The simulated device as ``(truth, strength)`` (set by :func:`make_case`, not saved by
+    #: :meth:`save`): :func:`physical_checks` measures the true effect with it on test inputs.
+    device: Any = field(default=None, repr=False, compare=False)
 
     def identify(self, levels: int | None = None) -> PreisachModel:
         """Identify a model from the sweep (Mayergoyz: :func:`preisach.identify.identify_fod`).
@@ -423,7 +451,7 @@ def make_case(
         truth = _RigTruth(kind, dev, _rig_params(kind, rng), dt, int(rng.integers(2**31)))
         params = truth.params
     else:
-        params = _truth_params(kind, rng)
+        params = _truth_params(kind, rng, dev)
         truth = _Truth(
             kind,
             dev,
@@ -500,7 +528,7 @@ def make_case(
         "adc_bits": adc_bits,
         "scale": scale,
     }
-    return Case(kind, recs[0], recs[1:], info)
+    return Case(kind, recs[0], recs[1:], info, device=(truth, strength))
 
 
 def run_case(
@@ -530,8 +558,13 @@ def run_case(
         units of ``sigma``), ``sigma`` (V), ``verdict``, ``effects`` (names in the order kept),
         ``gain`` (relative held-out RMSE reduction of the first effect, 0 without one),
         ``params`` (the first effect's fitted values, units as in the report), ``rmse_before``
-        and ``rmse_after`` (V), ``truth`` (:attr:`Case.truth`), ``seconds`` (wall time, s) and
-        ``summary`` (the report's text).
+        and ``rmse_after`` (V), ``baseline_rmse`` (V: the held-out RMSE of diagnosis's own
+        baseline, the base model refitted on the training blocks without any effect) and
+        ``baseline_ratio`` (that over ``sigma``: about ``sqrt(1 + size**2)`` if the baseline
+        saw exactly the calibrated effect size, more when the effect is harder to absorb on
+        the training blocks than in the calibration's 41-level fit on all clean data),
+        ``checks`` (:func:`physical_checks`), ``truth`` (:attr:`Case.truth`), ``seconds``
+        (wall time, s) and ``summary`` (the report's text).
 
     """
     from .core import diagnose
@@ -548,6 +581,8 @@ def run_case(
         max_effects=max_effects,
     )
     first = rep.effects[0] if rep.effects else None
+    step1 = [c for c in rep.candidates if c["step"] == 1]
+    base_rmse = float(step1[0]["baseline_rmse"]) if step1 else float(rep.rmse_before)
     return {
         "kind": kind,
         "generator": generator,
@@ -564,10 +599,151 @@ def run_case(
         },
         "rmse_before": rep.rmse_before,
         "rmse_after": rep.rmse_after,
+        "baseline_rmse": base_rmse,
+        "baseline_ratio": base_rmse / sigma,
+        "checks": physical_checks(case, rep),
         "truth": case.truth,
         "seconds": time.perf_counter() - t0,
         "summary": rep.summary(),
     }
+
+
+# ----------------------------------------------------------------------------------------
+# physically meaningful comparison of a fitted effect with the truth
+# ----------------------------------------------------------------------------------------
+def _triangle(f: float, periods: int, model: PreisachModel, dt: float) -> Array:
+    """Major-loop triangle wave from ``u_min`` at ``f`` Hz (V)."""
+    t = np.arange(int(round(periods / f / dt)) + 1) * dt
+    ph = (f * t) % 1.0
+    return model.u_min + (model.u_max - model.u_min) * (1 - np.abs(2 * ph - 1))
+
+
+def _mid_width(u: Array, y: Array, n_last: int) -> float:
+    """Loop width (V) at mid input over the last ``n_last`` samples: descending - ascending."""
+    u, y = u[-n_last:], y[-n_last:]
+    mid = 0.5 * (u.min() + u.max())
+    du = np.diff(u, prepend=u[0])
+    up, dn = du > 0, du < 0
+    y_up = np.interp(mid, u[up], y[up])
+    o = np.argsort(u[dn])
+    y_dn = np.interp(mid, u[dn][o], y[dn][o])
+    return float(y_dn - y_up)
+
+
+def _rate_widening(sim: Callable[[Array], Array], model: PreisachModel, dt: float) -> float:
+    """Major-loop width at mid input at 1 Hz minus that at 0.05 Hz (V), second period."""
+    w = []
+    for f in (1.0, 0.05):
+        u = _triangle(f, 2, model, dt)
+        w.append(_mid_width(u, sim(u), int(round(1 / f / dt))))
+    return w[0] - w[1]
+
+
+def _creep_movement(sim: Callable[[Array], Array], model: PreisachModel, dt: float) -> float:
+    """Output movement (V) from 50 ms to 1 s after a 40 ms step from ``u_min`` to 60 % span."""
+    span = model.u_max - model.u_min
+    u = legs(
+        [model.u_min, model.u_min, model.u_min + 0.6 * span, model.u_min + 0.6 * span],
+        [0.3, 0.04, 1.2],
+        sample_time=dt,
+    ).u
+    y = sim(u)
+    k_end = int(round(0.34 / dt))
+    return float(y[k_end + int(round(1.0 / dt))] - y[k_end + int(round(0.05 / dt))])
+
+
+def _feedback_slope(f: Callable[[Array], Array], model: PreisachModel) -> float:
+    """Secant slope (V/V) of a feedback map over 10-90 % of the output range."""
+    y = model.y_min + (model.y_max - model.y_min) * np.array([0.1, 0.9])
+    v = f(y)
+    return float((v[1] - v[0]) / (y[1] - y[0]))
+
+
+def physical_checks(case: Case, report: Any) -> dict[str, dict[str, float]]:
+    """Physically meaningful quantities of the verdict's effect: fitted and true values.
+
+    The forms of the truth and the candidates differ (see the module docstring), so their
+    parameters are compared through what they do, measured identically on both the device
+    (:attr:`Case.device`) and the diagnosed model restricted to the verdict's blocks:
+
+    * ``delay``: ``lag`` (s), the fitted delay vs the truth's low-frequency lag;
+    * ``structural_resonance``: ``f_n`` (Hz), ``zeta`` (1) and ``participation`` (1);
+    * ``creep``: ``creep_50ms_1s`` (V), the output's movement from 50 ms to 1 s after a
+      40 ms step from ``u_min`` to 60 % of the input span;
+    * ``rate_dependence``: ``widening`` (V), the major loop's width at mid input at 1 Hz
+      minus that at 0.05 Hz (triangle waves);
+    * ``sensor_drift``: ``peak_to_peak`` (V), the largest drift peak-to-peak over the
+      diagnosis recordings;
+    * ``non_congruence``: ``feedback_slope`` (V/V), the secant slope of the output feedback
+      on the relays' input over 10-90 % of the output range.
+
+    Parameters
+    ----------
+    case : Case
+        A case made by :func:`make_case` (``case.device`` set).
+    report : DiagnosisReport
+        Its diagnosis.
+
+    Returns
+    -------
+    dict
+        ``{quantity: {"fitted": value, "truth": value}}``; empty when the verdict is not the
+        case's kind, for ``"none"``, or without ``case.device``.
+
+    """
+    from .augmented import AugmentedModel
+
+    kind = case.kind
+    if case.device is None or kind == "none" or report.verdict != kind:
+        return {}
+    truth, strength = case.device
+    dev, dt = truth.model, truth.dt
+    p = {k: v["value"] for k, v in report.effects[0].parameters.items() if "value" in v}
+    aug = report.model
+    mine = AugmentedModel(aug.base, [b for b in aug.blocks if b.kind == kind])
+
+    def fitted(u: Array) -> Array:
+        return np.asarray(mine.simulate(u, mine.negative_saturation(), sample_time=dt).output)
+
+    def true(u: Array) -> Array:
+        return np.asarray(truth.simulate(u, strength, 0))
+
+    rig = isinstance(truth, _RigTruth)
+    out: dict[str, dict[str, float]] = {}
+
+    def put(name: str, f: float, t: float) -> None:
+        out[name] = {"fitted": float(f), "truth": float(t)}
+
+    if kind == "delay":
+        put("lag", p["tau"], truth.describe(strength)["lag"] if rig else strength)
+    elif kind == "structural_resonance":
+        if rig:
+            mode = truth.blocks(strength, 0)[1][0]
+            f_n, zeta, part = mode["frequency"], mode["damping"], 1.0
+        else:
+            f_n, zeta, part = truth.params["f_n"], truth.params["zeta"], strength
+        put("f_n", p["f_n"], f_n)
+        put("zeta", p["zeta"], zeta)
+        put("participation", p["participation"], part)
+    elif kind == "creep":
+        put("creep_50ms_1s", _creep_movement(fitted, dev, dt), _creep_movement(true, dev, dt))
+    elif kind == "rate_dependence":
+        put("widening", _rate_widening(fitted, dev, dt), _rate_widening(true, dev, dt))
+    elif kind == "sensor_drift":
+        p2p = [
+            np.ptp(truth.simulate(r.u, strength, i) - truth.simulate(r.u, 0.0, i))
+            for i, r in enumerate(case.recordings, start=1)
+        ]
+        put("peak_to_peak", p["peak_to_peak"], max(p2p))
+    elif kind == "non_congruence":
+        fb = [b for b in mine.blocks if b.kind == kind][0]
+        if rig:
+            slope = strength
+        else:
+            a, yc, Y = strength, truth.params["y_c"], truth.params["Y"]
+            slope = _feedback_slope(lambda y: a * Y * np.tanh((y - yc) / Y), dev)
+        put("feedback_slope", _feedback_slope(fb.run, dev), slope)
+    return out
 
 
 # ----------------------------------------------------------------------------------------

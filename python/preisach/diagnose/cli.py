@@ -97,7 +97,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         action="append",
         default=[],
         help="recording the model was identified from (repeatable); the Preisach weights are then "
-        "refitted together with every candidate",
+        "refitted together with every candidate.  It is training data only: a REC holding the "
+        "same samples is left out of the diagnosis with a warning",
     )
     p.add_argument("--candidates", help="comma-separated candidate names (default: all)")
     p.add_argument(

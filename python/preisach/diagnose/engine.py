@@ -29,7 +29,9 @@ Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing descriptio
    Of those, the one with the lowest held-out error is kept - unless one with fewer
    parameters is not significantly worse on the held-out blocks (sign-flip test at
    ``tie_alpha``), which is then preferred (parsimony among explanations the data cannot tell
-   apart; the held-out scoring itself already charges for over-fitting).  Selection stops
+   apart; the held-out scoring itself already charges for over-fitting, so no information
+   criterion is added: the number of parameters matters only through this preference).
+   Selection stops
    when nothing qualifies; candidates that lowered the held-out error by less than
    ``retry_gain`` (2 %) in a step are not tried again in the next.
 6. The kept effects are refitted on all usable samples; parameter uncertainties come from the
@@ -509,7 +511,17 @@ class Context:
         )
 
     def drift_heldout(self, i: int, res: Array, test: Mask) -> Array:
-        """Drift predicted on the ``test`` samples, fitted on the other-parity usable samples."""
+        """Drift predicted on the ``test`` samples, fitted on the other-parity usable samples.
+
+        The drift is a per-recording nuisance (a sensor's offset wanders differently in every
+        run), so it cannot be carried over from other recordings.  Its curve at a held-out
+        sample of block parity ``p`` is fitted on the same recording's samples of the other
+        parity: no sample is predicted by a drift fitted on it.  Under ``cv="blocks"`` those
+        samples are training samples.  Under ``cv="recordings"`` they belong to the held-out
+        recording itself - the one exception to "held-out recordings are never used for
+        fitting": the chain (base weights and effects) comes from the other recordings, only
+        this recording's drift curve comes from its other blocks.
+        """
         r = self.recs[i]
         out = np.zeros(r.n)
         B = self.drift_basis(i)
@@ -614,8 +626,9 @@ class Context:
         drift: bool,
         starts: list[Array] | None,
         profile: bool = False,
+        reference: FittedEffect | None = None,
     ) -> FittedEffect:
-        prob = _Problem(self, cand, fixed, train, drift, profile=profile)
+        prob = _Problem(self, cand, fixed, train, drift, profile=profile, reference=reference)
         self._last_problem = prob
         if starts is None:
             self._problem = prob
@@ -657,7 +670,7 @@ class Context:
         eff = None
         for _ in range(max(1, self.alternations)):
             eff = self._fit_params(
-                cand, Chain(ref, fixed.effects), train, drift, starts, profile=True
+                cand, Chain(ref, fixed.effects), train, drift, starts, profile=True, reference=eff
             )
             ref = Base(self._last_problem.theta(eff.x))
             starts = [eff.x]
@@ -670,7 +683,13 @@ class Context:
         # with a refitted base the weights are profiled out, so their trade-off with the
         # effect's parameters is in the Jacobian
         prob = _Problem(
-            self, eff.cand, Chain(chain.base, chain.effects[:-1]), train, drift, profile=self.refit
+            self,
+            eff.cand,
+            Chain(chain.base, chain.effects[:-1]),
+            train,
+            drift,
+            profile=self.refit,
+            reference=eff,
         )
         x = eff.x
         r0 = prob.residuals(x)
@@ -690,7 +709,11 @@ class Context:
 
 
 class _Problem:
-    """Training residuals of one candidate after a fixed chain, evaluated fast."""
+    """Training residuals of one candidate after a fixed chain, evaluated fast.
+
+    ``reference`` (a fitted feedback effect, optional) closes the reference chain's loop for
+    the feedback signal outside the training samples (see ``feedback_from`` below).
+    """
 
     def __init__(
         self,
@@ -700,6 +723,7 @@ class _Problem:
         train: list[Mask],
         drift: bool,
         profile: bool = False,
+        reference: FittedEffect | None = None,
     ) -> None:
         self.ctx, self.cand, self.fixed = ctx, cand, fixed
         self.train, self.drift, self.profile = train, drift, profile
@@ -743,7 +767,12 @@ class _Problem:
         # weights for given feedback parameters are an exact linear least-squares problem;
         # closing the loop through the simulated output instead would tie the effective input
         # to the reference weights, which have absorbed most of the feedback.  Held-out
-        # predictions always close the loop.
+        # predictions always close the loop.  Outside the training samples (held-out blocks,
+        # burn-in) the measured output must not enter the fit - yet the relays' memory at
+        # later training samples depends on the input they saw there - so the feedback is
+        # driven by the reference chain's simulated Preisach output instead: the reference
+        # base with the previous alternation's feedback loop closed (``reference``), or
+        # without feedback in the first one.
         self.feedback_from: dict[int, Array] | None = None
         if profile:
             # regressors at the reference base; fixed for output-side candidates
@@ -758,10 +787,12 @@ class _Problem:
             self.cacheable = not moved
             self.factor = ctx.normal_factor(self.R, train, drift, self.cacheable)
             if cand.side == "feedback":
-                self.feedback_from = {
-                    i: ctx.recs[i].y - (ctx.output_side(i, P, outs, st) - P)
-                    for i, (P, st) in self.ref_stage.items()
-                }
+                self.feedback_from = {}
+                ref_fb = [reference] if reference is not None else []
+                for i, (P, st) in self.ref_stage.items():
+                    measured = ctx.recs[i].y - (ctx.output_side(i, P, outs, st) - P)
+                    sim = ctx.stage(i, fixed.base, [*self.ins, *ref_fb])[0] if ref_fb else P
+                    self.feedback_from[i] = np.where(train[i], measured, sim)
 
     def _outputs(self, i: int, x: Array, y: Array, st: Stage) -> Array:
         """All output blocks (fixed ones and, if output-side, the candidate) applied to ``y``."""
@@ -938,7 +969,6 @@ class StepResult:
     p_values: dict[str, float]
     gains: dict[str, float]
     explained: dict[str, float]  # held-out MSE reduction / noise variance
-    penalised: dict[str, float]
     qualifies: dict[str, bool]
     reasons: dict[str, str]
     chosen: str | None
@@ -1129,14 +1159,12 @@ def run_selection(
                     f"  {name}: held-out RMSE {1e3 * scores[name].rmse:.4g} mV "
                     f"({_time.perf_counter() - t0:.2f} s)"
                 )
-        n_b = float(baseline.n_blocks.size)
-        pv, gains, expl, pen, ok, why = {}, {}, {}, {}, {}, {}
+        pv, gains, expl, ok, why = {}, {}, {}, {}, {}
         for name, sc in scores.items():
             d = baseline.sse_blocks - sc.sse_blocks
             pv[name] = sign_flip_p(d, seed=len(steps))
             gains[name] = 1.0 - sc.rmse / baseline.rmse if baseline.rmse > 0 else 0.0
             expl[name] = (baseline.mse - sc.mse) / sigma**2 if sigma > 0 else float("inf")
-            pen[name] = n_b * math.log(max(sc.mse, 1e-300)) + 2.0 * n_par[name]
             reasons = []
             if gains[name] < min_gain:
                 reasons.append(
@@ -1156,7 +1184,7 @@ def run_selection(
         quals = [n for n in scores if ok[n]]
         chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
         steps.append(
-            StepResult(baseline, scores, n_par, pv, gains, expl, pen, ok, why, chosen, new_chains)
+            StepResult(baseline, scores, n_par, pv, gains, expl, ok, why, chosen, new_chains)
         )
         if chosen is None:
             break

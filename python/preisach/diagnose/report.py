@@ -430,7 +430,6 @@ def candidate_table(steps: list[StepResult]) -> list[dict[str, Any]]:
                     "explained_noise_variances": st.explained[name],
                     "p_value": st.p_values[name],
                     "n_params": st.n_params[name],
-                    "penalised_score": st.penalised[name],
                     "kept": st.chosen == name,
                     "decision": st.reasons[name],
                 }

@@ -48,6 +48,11 @@ struct Safety {
         if (!(slew_rate > 0.0)) throw std::invalid_argument("safety: slew_rate must be > 0 V/s (inf for none)");
         if (!(std::isfinite(ramp_rate) && ramp_rate > 0.0))
             throw std::invalid_argument("safety: ramp_rate must be a positive finite number of V/s");
+        // The ramp to 0 V after an abort is not slew limited itself: it must not be faster.
+        if (ramp_rate > slew_rate)
+            throw std::invalid_argument("safety: ramp_rate = " + std::to_string(ramp_rate) + " V/s exceeds slew_rate = " +
+                                        std::to_string(slew_rate) +
+                                        " V/s; the ramp to 0 V must respect the slew limit (use ramp_rate <= slew_rate)");
         if (std::isnan(y_min) || std::isnan(y_max) || !(y_min < y_max))
             throw std::invalid_argument("safety: input limits [y_min, y_max] must satisfy y_min < y_max");
         if (max_consecutive_missed == 0)
