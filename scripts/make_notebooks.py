@@ -1032,7 +1032,6 @@ NB06 = [
     code(
         """
         import os
-        import re
         from pathlib import Path
         import numpy as np
         import matplotlib.pyplot as plt
@@ -1197,18 +1196,17 @@ NB06 = [
         Between
         curves the instrument re-measures a calibration point at saturation; its drift over the
         32-minute run is corrected first by scaling each curve with its calibration point.
+        `preisach.forc.read_forc` reads the instrument's file; `.to_recording()` turns it into
+        a recording in which `find_fod_curves`' mirror, `find_forc_curves`, finds every curve.
         """
     ),
     code(
         """
-        text = (DATA / "pmagpy-forc" / "conventional_example.forc").read_text()
-        body = text.split("NData", 1)[1].split("\\n", 1)[1].split("MicroMag")[0]
-        blocks = [np.array([[float(v) for v in ln.split(",")] for ln in b.strip().splitlines()])
-                  for b in re.split(r"\\n\\s*\\n", body.strip()) if b.strip()]
-        calib, curves = blocks[0::2], blocks[1::2]          # they alternate: calibration, FORC, ...
-        cal_m = np.array([c[0, 1] for c in calib])            # A m^2 at +0.237 T before each curve
-        corrected = [np.column_stack([c[:, 0], c[:, 1] * cal_m[0] / cm])
-                     for c, cm in zip(curves, cal_m)]
+        from preisach.forc import read_forc
+        meas = read_forc(DATA / "pmagpy-forc" / "conventional_example.forc")
+        curves = meas.curves                                  # (field T, moment A m^2) each
+        cal_m = meas.calibration[:, 1]                        # A m^2 at +0.237 T before each curve
+        corrected = meas.drift_corrected().curves             # scaled by the calibration drift
         print(f"{len(curves)} FORCs, reversal fields {curves[0][0, 0]:.4f} .. "
               f"{curves[-1][0, 0]:.4f} T; the calibration moment drifted "
               f"{100 * (cal_m[-1] / cal_m[0] - 1):+.2f} % over the run")

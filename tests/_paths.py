@@ -12,3 +12,4 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DATA_DIR = Path(os.environ.get("PREISACH_DATA") or ROOT.parent / "shared" / "data")
 YAN9A = DATA_DIR / "yan9a-piezo" / "Model_Vi_Do.dat"
+PMAGPY_FORC = DATA_DIR / "pmagpy-forc" / "conventional_example.forc"

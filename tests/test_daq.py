@@ -1,6 +1,7 @@
 """The DAQ layer: virtual SS15 rig, trial runner, safety, interrupts, Comedi (replayed)."""
 
 import _thread
+import math
 import time
 
 import numpy as np
@@ -276,7 +277,7 @@ def test_rig_state_and_reset(model):
     assert rig.simulated and "virtual SS15" in rig.description
 
 
-COMEDI_PROTOCOL = """
+COMEDI_SETUP = """
     open /dev/comedi0 -> 1
     board_name -> pci-multiq
     find_subdevice_by_type 2 0 -> 1
@@ -291,6 +292,10 @@ COMEDI_PROTOCOL = """
     get_maxdata 0 1 -> 8191
     get_subdevice_flags 0 -> 0
     hardcal_converter 0 1 0 to -> 0 : 1 0 -5 0.001220703125
+"""
+COMEDI_PROTOCOL = (
+    COMEDI_SETUP
+    + """
     # sample 0: read 1 V, write u = 10 V at the actuator
     data_read 0 1 0 0 -> 0 4915
     data_write 1 1 0 0 {code0} -> 0
@@ -298,10 +303,17 @@ COMEDI_PROTOCOL = """
     data_read 0 1 0 0 -> 0 4915
     data_write 1 1 0 0 {code1} -> 0
 """
+)
+
+
+def _connector_code(connector):
+    """comedi_from_physical of the 12-bit +/-10 V output above (round half to even)."""
+    return int(round(204.75 * (connector + 10.0)))
 
 
 def _dac_code(u):
-    return int(np.round(204.75 * (SS15_CHANNEL_B.inverse(u) + 10)))
+    """The output code for ``u`` volts at the actuator (channel B calibration)."""
+    return _connector_code(SS15_CHANNEL_B.inverse(u))
 
 
 def test_comedi_protocol_replays_through_a_trial(tmp_path):
@@ -377,3 +389,43 @@ def test_device_plant_runs_the_experiments_like_the_model(model, tmp_path):
     runs = sorted(tmp_path.glob("run_*.csv"))
     assert runs and all(Recording.load(p).metadata["end_status"] == "complete" for p in runs)
     assert plants["rig"].snapshot() == rig.state
+
+
+def test_comedi_close_ramps_the_actuator_to_zero():
+    """close() ramps the output to 0 V at <= close_ramp_rate instead of stepping it there."""
+    c_last = SS15_CHANNEL_B.inverse(20.0)  # 20 V at the actuator: -1.418 V at the connector
+    # 500 V/s at the actuator is 35.4 mV/ms at the connector: ceil(1.418 / 0.0354) = 41 writes
+    steps = math.ceil(abs(c_last) / (500.0 * 1e-3 / abs(SS15_CHANNEL_B.gain)) - 1e-9)
+    assert steps == 41
+    ramp = [_connector_code(c_last * (1.0 - s / steps)) for s in range(1, steps)] + [
+        _connector_code(0.0)
+    ]
+    protocol = (
+        COMEDI_SETUP
+        + f"data_write 1 1 0 0 {_connector_code(c_last)} -> 0\n"
+        + "".join(f"data_write 1 1 0 0 {c} -> 0\n" for c in ramp)
+        + "close ->\n"
+    )
+    dev = daq._core.ComediDevice.replay(
+        protocol, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
+    )
+    assert (dev.close_ramp_rate, dev.close_ramp_period) == (500.0, 1e-3)
+    dev.write([c_last])
+    dev.close()
+    calls = dev.verify_protocol()  # every expected call made, in order: no step to 0 V
+    assert calls[-1] == "close" and not dev.is_open
+    written = np.array(
+        [_connector_code(c_last)] + [int(c.split()[-1]) for c in calls[-steps - 1 : -1]]
+    )
+    u = SS15_CHANNEL_B.gain * (written / 204.75 - 10.0) + SS15_CHANNEL_B.offset  # actuator V
+    assert np.all(np.diff(u) < 0)  # monotone from 20 V ...
+    assert np.max(np.abs(np.diff(u))) <= 0.5 + 14.12 / 204.75  # 0.5 V/ms (+ 1 code rounding)
+    assert written[-1] == _connector_code(0.0)  # ... to 0 V at the connector
+    with pytest.raises(ValueError, match="close_ramp_rate"):
+        daq._core.ComediDevice.replay(
+            COMEDI_SETUP,
+            "/dev/comedi0",
+            [daq.ss15_output_channel()],
+            [daq.ss15_input_channel()],
+            close_ramp_rate=-1.0,
+        )

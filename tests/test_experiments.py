@@ -10,7 +10,6 @@ import math
 import numpy as np
 import pytest
 from preisach import PreisachModel, _core, daq
-from preisach.calibration import SS15_CHANNEL_B
 from preisach.experiments import (
     HOLD_BAND,
     HOLD_DURATION,
@@ -594,63 +593,3 @@ def test_sweep_accepts_models_and_rejects_bad_arguments():
         regulation_sweep("drift", {1.0: m}, states=["x"])
     with pytest.raises(TypeError, match="plants"):
         regulation_sweep("drift", {1.0: "ss15"})
-
-
-# ------------------------------------------------------------------ Comedi: closing ramp
-_COMEDI_SETUP = """
-    open /dev/comedi0 -> 1
-    board_name -> pci-multiq
-    find_subdevice_by_type 2 0 -> 1
-    get_n_channels 1 -> 4
-    find_range 1 1 -10 10 -> 0
-    get_maxdata 1 1 -> 4095
-    get_subdevice_flags 1 -> 0
-    hardcal_converter 1 1 0 from -> 0 : 1 -10 0 204.75
-    find_subdevice_by_type 1 0 -> 0
-    get_n_channels 0 -> 8
-    find_range 0 1 -5 5 -> 0
-    get_maxdata 0 1 -> 8191
-    get_subdevice_flags 0 -> 0
-    hardcal_converter 0 1 0 to -> 0 : 1 0 -5 0.001220703125
-"""
-
-
-def _code(connector):
-    """comedi_from_physical of the 12-bit +/-10 V output above (round half to even)."""
-    return int(round(0.0 + 204.75 * (connector - -10.0)))
-
-
-def test_comedi_close_ramps_the_actuator_to_zero():
-    """close() ramps the output to 0 V at <= close_ramp_rate instead of stepping it there."""
-    c_last = SS15_CHANNEL_B.inverse(20.0)  # 20 V at the actuator: -1.418 V at the connector
-    # 500 V/s at the actuator is 35.4 mV/ms at the connector: ceil(1.418 / 0.0354) = 41 writes
-    steps = math.ceil(abs(c_last) / (500.0 * 1e-3 / abs(SS15_CHANNEL_B.gain)) - 1e-9)
-    assert steps == 41
-    ramp = [_code(c_last * (1.0 - s / steps)) for s in range(1, steps)] + [_code(0.0)]
-    protocol = (
-        _COMEDI_SETUP
-        + f"data_write 1 1 0 0 {_code(c_last)} -> 0\n"
-        + "".join(f"data_write 1 1 0 0 {c} -> 0\n" for c in ramp)
-        + "close ->\n"
-    )
-    dev = daq._core.ComediDevice.replay(
-        protocol, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
-    )
-    assert (dev.close_ramp_rate, dev.close_ramp_period) == (500.0, 1e-3)
-    dev.write([c_last])
-    dev.close()
-    calls = dev.verify_protocol()  # every expected call made, in order: no step to 0 V
-    assert calls[-1] == "close" and not dev.is_open
-    written = np.array([_code(c_last)] + [int(c.split()[-1]) for c in calls[-steps - 1 : -1]])
-    u = SS15_CHANNEL_B.gain * (written / 204.75 - 10.0) + SS15_CHANNEL_B.offset  # actuator V
-    assert np.all(np.diff(u) < 0)  # monotone from 20 V ...
-    assert np.max(np.abs(np.diff(u))) <= 0.5 + 14.12 / 204.75  # 0.5 V/ms (+ 1 code rounding)
-    assert written[-1] == _code(0.0)  # ... to 0 V at the connector
-    with pytest.raises(ValueError, match="close_ramp_rate"):
-        daq._core.ComediDevice.replay(
-            _COMEDI_SETUP,
-            "/dev/comedi0",
-            [daq.ss15_output_channel()],
-            [daq.ss15_input_channel()],
-            close_ramp_rate=-1.0,
-        )
