@@ -42,8 +42,10 @@ Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing descriptio
 from __future__ import annotations
 
 import math
+import os
 import time as _time
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Callable, cast
 
@@ -708,6 +710,17 @@ class Context:
         return bread @ (S.T @ S) @ bread
 
 
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _pool() -> ThreadPoolExecutor:
+    """Threads for the per-recording work of a fit (one per core, made once)."""
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=os.cpu_count() or 1, thread_name_prefix="diagnose")
+    return _POOL
+
+
 class _Problem:
     """Training residuals of one candidate after a fixed chain, evaluated fast.
 
@@ -826,12 +839,9 @@ class _Problem:
         # normal equations straight from the C++ regressor, without forming it
         outs = [e for e in effs if e.cand.side == "output"]
         p = ctx.n_theta
-        N = np.zeros((p, p))
-        rhs = np.zeros(p)
-        self._last_u = {}
-        for i, m in enumerate(self.train):
-            if not m.any():
-                continue
+        ctx.table(self.fixed.base)  # built once, before the threads share it
+
+        def one(i: int) -> tuple[Array, Array, Array]:
             r = ctx.recs[i]
             fb = None if self.feedback_from is None else self.feedback_from[i]
             P, ue, st = ctx.stage(i, self.fixed.base, effs, fb)
@@ -840,10 +850,19 @@ class _Problem:
                 fold = np.full(r.n, -1, np.int32)
                 fold[self.coarse[i]] = 0
             else:
-                fold = np.where(m, 0, -1).astype(np.int32)
+                fold = np.where(self.train[i], 0, -1).astype(np.int32)
             gram, b, *_ = _core.normal_equations(ctx.levels, ue, target, r.state0, fold, 1, "clamp")
-            N += gram[0]
-            rhs += b[0]
+            return gram[0], b[0], ue
+
+        # the recordings are independent and the C++ loops release the GIL: one per core,
+        # summed in recording order so the result does not depend on the threads
+        todo = [i for i, m in enumerate(self.train) if m.any()]
+        N = np.zeros((p, p))
+        rhs = np.zeros(p)
+        self._last_u = {}
+        for i, (gram, b, ue) in zip(todo, _pool().map(one, todo)):
+            N += gram
+            rhs += b
             self._last_u[i] = ue
         lam = 1e-7 * max(float(np.trace(N)) / p, 1e-300)
         N[np.diag_indices(p)] += lam
