@@ -31,11 +31,12 @@ def main() -> None:
         ("with the identification sweep (base refitted)", case.identification),
         ("without it (given model fixed)", None),
     ):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         rep = diagnose(model, case.recordings, identification=ident)
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
         print(
-            f"diagnose {label}: {dt:.1f} s, {sum(n) / dt / 1e3:.1f} k samples/s, "
+            f"diagnose {label}: {dt:.1f} s ({cpu / dt:.2f} cores busy on average), "
+            f"{sum(n) / dt / 1e3:.1f} k samples/s, "
             f"verdict {rep.verdict}, "
             f"held-out RMSE {1e3 * rep.rmse_before:.3g} -> {1e3 * rep.rmse_after:.3g} mV "
             f"({'under' if dt < 60 else 'OVER'} the 60 s target)"

@@ -266,10 +266,11 @@ def test_identification_recording_is_not_diagnosed_twice():
     m, recs = _recs_with("none")
     lines: list[str] = []
     copy = Recording.from_arrays(t=recs[0].t, u=recs[0].u.copy(), y=recs[0].y.copy())
-    with pytest.warns(UserWarning, match="same samples as an identification recording"):
+    with pytest.warns(UserWarning, match="same samples as an identification recording") as w:
         rep = diagnose(
             m, recs, identification=copy, candidates=["gain_offset"], progress=lines.append
         )
+    assert w[0].filename == __file__  # the warning points at the caller
     assert lines[0].startswith("2 recordings (1 for identification)")
     assert rep.verdict == "none"
     with (
@@ -277,6 +278,30 @@ def test_identification_recording_is_not_diagnosed_twice():
         pytest.warns(UserWarning, match="same samples"),
     ):
         diagnose(m, recs[:1], identification=copy)
+
+
+def test_diagnosis_limits_blas_to_one_thread(monkeypatch):
+    """Thousands of small solves between multi-threaded C++ loops: BLAS threads only compete."""
+    import importlib
+
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    core = importlib.import_module("preisach.diagnose.core")
+    seen: list[list[int]] = []
+    real = core.run_selection
+
+    def spy(*args, **kwargs):
+        seen.append([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(core, "run_selection", spy)
+    m, recs = _recs_with("none")
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+        diagnose(m, recs, candidates=["gain_offset"])
+        after = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+    assert seen and seen[0] and set(seen[0]) == {1}
+    assert after == before  # the caller's setting is back afterwards
 
 
 @pytest.mark.slow
@@ -333,3 +358,22 @@ def test_own_generator_shapes_are_not_the_candidates():
         ]
     )
     assert np.all((tau >= 5e-3) & (tau <= 0.1)) and tau.max() / tau.min() > 5
+
+
+def test_candidate_blocks_are_not_shared_between_threads():
+    """The per-recording threads of a fit must not run one block's state at once."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from preisach.diagnose.candidates import CreepCandidate
+    from preisach.diagnose.engine import Context
+
+    m, recs = _recs_with("none")
+    ctx = Context(m, prepare_recordings(m, recs))
+    cand = CreepCandidate()
+    cand.prepare(ctx)
+    x = np.full(len(cand.specs(ctx)), 0.01)
+    here = cand.block(x, 1e-3)
+    assert cand.block(x, 1e-3) is here  # cached within a thread
+    with ThreadPoolExecutor(2) as ex:
+        there = ex.submit(cand.block, x, 1e-3).result()
+    assert there is not here and type(there) is type(here)

@@ -141,8 +141,17 @@ def test_real_piezo_recording():
     model, _ = identify_lsq(ident, 21)
     rep = diagnose(model, recs, identification=ident)
     names = [e.name for e in rep.effects]
-    # the reading lags the drive (the authors assume one 5 ms sample) and drifts with time
-    assert "sensor_drift" in names
-    lagged = [e for e in rep.effects if e.name in ("rate_dependence", "delay")]
-    assert lagged, rep.summary()
+    # The reading drifts with time, and the loops differ from the identified ones in a way
+    # that a lag of the drive (the authors assume one 5 ms sample) and a moving model both
+    # explain on this single 1 Hz drive: both qualify in the first step, and which one is
+    # kept is not robust (it changed with the rounding of the BLAS threads).
+    assert "sensor_drift" in names and len(names) == 2, rep.summary()
+    assert names[0] in ("rate_dependence", "delay", "non_congruence"), rep.summary()
+    first = {c["name"]: c for c in rep.candidates if c["step"] == 1}
+    for name in ("rate_dependence/input_lag", "non_congruence", "sensor_drift"):
+        assert first[name]["decision"] == "qualifies", rep.summary()
     assert rep.rmse_after < 0.5 * rep.rmse_before
+    # the final model (refitted on all samples) is sound: a drift of tens of mV/s, well
+    # determined (a final fit that broke the closed loop gave 458 +- 1232 mV/s)
+    rate = next(e for e in rep.effects if e.name == "sensor_drift").parameters["rate"]
+    assert 0.005 < abs(rate["value"]) < 0.06 and rate["std"] < 0.5 * abs(rate["value"])

@@ -70,6 +70,13 @@ def test_read_correct_and_find_every_curve(tmp_path):
     found = find_forc_curves(rec.t, rec.u, rec.y, LEVELS)
     assert "10 used, 0 rejected" in found.report()
     np.testing.assert_allclose(found.y_grid, grid, rtol=0, atol=1e-12, equal_nan=True)
+    # given the recording, the finder reports in its units (tesla in, A m^2 out), not volts
+    assert (found.input_units, found.output_units) == ("V", "V")  # bare arrays: volts
+    named = find_forc_curves(rec, levels=LEVELS)
+    assert (named.input_units, named.output_units) == ("T", "A m^2")
+    text = named.report()
+    assert "input range -100 T .. 100 T" in text and "turn [T]" in text
+    assert "A m^2\n" in text and " V" not in text  # max spread, an output value
     # without the drift correction the grid is off by the drift
     raw = find_forc_curves(*(lambda r: (r.t, r.u, r.y))(meas.to_recording()), LEVELS)
     assert np.nanmax(np.abs(raw.y_grid - grid)) > 0.01

@@ -226,6 +226,12 @@ def test_identify_fod_accepts_fod_data_and_merges_recordings(truth, sweep):
     assert np.sqrt(np.mean(e3**2)) < np.sqrt(np.mean(e2**2))
     with pytest.raises(ValueError, match="levels: not used with FODData"):
         identify_fod(fd, levels=21)
+    # the FOD grid is capped in the Python API too (1000 levels ran for minutes)
+    for ident in (identify_fod, identify_surface):
+        with pytest.raises(ValueError, match="at most 201 levels for an FOD grid.*got 202"):
+            ident(sweep, levels=202)
+        with pytest.raises(ValueError, match="got 1000"):
+            ident(sweep, levels=np.linspace(-100.0, 100.0, 1000))
 
 
 def test_identify_fod_gaps(truth):

@@ -165,7 +165,7 @@ def test_bad_input_exits_1_with_a_clear_message(files, tmp_path, capsys):
         argv = ["identify", files["fod_sweep"], "-o", str(tmp_path / "m.npz"), "--method", method]
         assert run([*argv, "--levels", "202"]) == 1
         err = capsys.readouterr().err
-        assert "--levels: at most 201 levels" in err and method in err
+        assert "levels: at most 201 levels for an FOD grid" in err and "got 202" in err
     assert not (tmp_path / "m.npz").exists()
     # --y-min-source belongs to the surface method
     assert run([*argv[:-2], "--method", "fod", "--y-min-source", "corner"]) == 1

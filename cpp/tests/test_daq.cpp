@@ -260,11 +260,23 @@ TEST_CASE("runner: stop request from another thread, output limits, exceptions r
         opt.fsync = false;
         opt.realtime = true;
         TrialRunner runner;
+        std::atomic<bool> returned{false};  // never wait for progress a run that ended cannot make
         std::thread stopper([&] {
-            while (runner.progress() < 50) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            while (runner.progress() < 50 && !returned.load())
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
             runner.request_stop("test stop");
         });
-        const auto res = runner.run(rig, ctl, opt, Safety{});
+        Safety safety;
+        safety.max_consecutive_missed = -1;  // a loaded machine may stall the loop: not this test's point
+        TrialResult res;
+        try {
+            res = runner.run(rig, ctl, opt, safety);
+        } catch (...) {
+            returned.store(true);
+            stopper.join();
+            throw;
+        }
+        returned.store(true);
         stopper.join();
         CHECK(res.end_status == "interrupted");
         CHECK(res.reason == "test stop");

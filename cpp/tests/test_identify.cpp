@@ -273,6 +273,30 @@ TEST_CASE("regressor: row . theta equals the simulator, from every kind of state
     }
 }
 
+TEST_CASE("regressor: a row asked for after skipped samples is the row of one asked at every sample") {
+    // rows are built lazily (a fit on every k-th sample pays only for those); skipping must not
+    // change a row, to the bit
+    std::mt19937 g(23);
+    const auto lv = nonuniform_levels(9);
+    for (int run = 0; run < 6; ++run) {
+        const State s0 = random_start(g);
+        const auto u = random_walk(g, 2000, 0.0, 0.25);
+        EverettRegressor every(lv, s0), some(lv, s0);
+        std::size_t asked = 0;
+        for (std::size_t k = 0; k < u.size(); ++k) {
+            every.step(u[k], InputPolicy::clamp, k);
+            some.step(u[k], InputPolicy::clamp, k);
+            const auto& ix = every.row_index();
+            if ((k * 7 + std::size_t(run)) % 5 != 0) continue;  // irregular skips, incl. runs
+            ++asked;
+            CHECK(some.row_index() == ix);
+            CHECK(some.row_value() == every.row_value());
+        }
+        CHECK(asked > 300);
+        CHECK(some.state() == every.state());
+    }
+}
+
 TEST_CASE("regressor: errors name the sample, the raise policy and a range mismatch") {
     const auto lv = uniform_levels(5);
     EverettRegressor reg(lv, State::negative_saturation(U_MIN, U_MAX));

@@ -64,13 +64,14 @@ public:
                                         std::to_string(grid_.u_min()) + ", " + std::to_string(grid_.u_max()) + "]");
         pieces_ = state.pieces();
         cur_ = state.input();
-        build_row();
+        dirty_ = true;
     }
 
     State state() const { return State(grid_.u_min(), grid_.u_max(), cur_, pieces_); }
 
     // Advance by one input sample (volts); NaN/inf raise, out-of-range inputs are clamped or
-    // raise per `policy`; `index` names the sample in errors.  The row is then current.
+    // raise per `policy`; `index` names the sample in errors.  Only the boundary moves here; the
+    // row is built when it is next asked for (a fit that uses every k-th sample pays for those).
     void step(double u, InputPolicy policy, std::size_t index) {
         const double lo = grid_.u_min(), hi = grid_.u_max();
         if (!(u >= lo && u <= hi)) {
@@ -83,13 +84,19 @@ public:
         }
         if (u == cur_) return;
         if (u > cur_) rise(u); else fall(u);
-        build_row();
+        dirty_ = true;
     }
 
     // The current row: parameter indices (ascending) and coefficients, so that
     // y = sum_k value[k] * theta[index[k]].
-    const std::vector<std::uint32_t>& row_index() const noexcept { return idx_; }
-    const std::vector<double>& row_value() const noexcept { return val_; }
+    const std::vector<std::uint32_t>& row_index() const {
+        if (dirty_) build_row();
+        return idx_;
+    }
+    const std::vector<double>& row_value() const {
+        if (dirty_) build_row();
+        return val_;
+    }
 
 private:
     // ---- boundary geometry (the rules of Simulator::rise / Simulator::fall) ----
@@ -116,7 +123,7 @@ private:
 
     // ---- linear functionals ----
     // Coefficient c on the full-table entry (i, j) (antisymmetric extension above the diagonal).
-    void add_entry(std::size_t i, std::size_t j, double c) {
+    void add_entry(std::size_t i, std::size_t j, double c) const {
         if (c == 0.0 || i == j) return;
         if (j > i) {
             std::swap(i, j);
@@ -124,7 +131,7 @@ private:
         }
         add_param(node_index(i, j), c);
     }
-    void add_param(std::size_t p, double c) {
+    void add_param(std::size_t p, double c) const {
         if (!mark_[p]) {
             mark_[p] = 1;
             touched_.push_back(std::uint32_t(p));
@@ -132,7 +139,7 @@ private:
         acc_[p] += c;
     }
     // c * E(alpha, beta), alpha >= beta, interpolated as EverettTable::operator().
-    void add_E(double alpha, double beta, double c) {
+    void add_E(double alpha, double beta, double c) const {
         if (alpha <= beta) return;
         const GridPos a = grid_.locate(alpha), b = grid_.locate(beta);
         add_entry(a.i, b.i, c * (1.0 - a.f) * (1.0 - b.f));
@@ -141,7 +148,7 @@ private:
         add_entry(a.i + 1, b.i + 1, c * a.f * b.f);
     }
     // c * dE/dbeta at a point strictly inside a cell (EverettTable::d_beta_interior).
-    void add_d_beta(double alpha, double beta, double c) {
+    void add_d_beta(double alpha, double beta, double c) const {
         const GridPos b = grid_.locate(beta, true);
         GridPos a = grid_.locate(alpha, true);
         if (a.i < b.i) a = {b.i, a.f};
@@ -156,7 +163,7 @@ private:
         add_entry(a.i + 1, b.i, -w * a.f);
     }
     // c * integral_b0^b1 -dE/dbeta(cc - beta, beta) dbeta (EverettTable::antidiagonal_integral).
-    void add_antidiagonal(double cc, double b0, double b1, double c) {
+    void add_antidiagonal(double cc, double b0, double b1, double c) const {
         if (!(b1 > b0)) return;
         const auto& lv = grid_.levels();
         cuts_.clear();
@@ -177,7 +184,7 @@ private:
         }
     }
 
-    void build_row() {
+    void build_row() const {
         const std::size_t k = pieces_.size();
         for (std::size_t q = 0; q < k; ++q) {
             const Piece& p = pieces_[q];
@@ -202,6 +209,7 @@ private:
             mark_[p] = 0;
         }
         touched_.clear();
+        dirty_ = false;
     }
 
     EverettTable grid_;  // levels and cell look-up only (all values zero)
@@ -209,12 +217,14 @@ private:
     std::size_t n_nodes_ = 0;
     std::vector<Piece> pieces_;
     double cur_ = 0.0;
-    std::vector<double> acc_;
-    std::vector<char> mark_;
-    std::vector<std::uint32_t> touched_;
-    std::vector<std::uint32_t> idx_;
-    std::vector<double> val_;
-    std::vector<double> cuts_;
+    // the row, built lazily from the boundary (logically const)
+    mutable bool dirty_ = true;
+    mutable std::vector<double> acc_;
+    mutable std::vector<char> mark_;
+    mutable std::vector<std::uint32_t> touched_;
+    mutable std::vector<std::uint32_t> idx_;
+    mutable std::vector<double> val_;
+    mutable std::vector<double> cuts_;
 };
 
 // Rows of the linear map for every input sample, in compressed sparse row form: row t holds

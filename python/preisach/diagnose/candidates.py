@@ -20,6 +20,7 @@ width, ``sensor_nonlinearity``, ``creep`` (material), ``structural_resonance`` (
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, cast
 
@@ -113,10 +114,17 @@ class Candidate:
     def block(self, x: Array, dt: float) -> Block:
         """Return the block for the fitted vector ``x`` at sample time ``dt``.
 
-        Blocks are cached by ``(x, dt)`` (a fit evaluates the same parameters on every
-        recording); callers reset a block before running it, so sharing one is safe.
+        Blocks are cached by ``(x, dt)`` and thread (a fit evaluates the same parameters on
+        every recording, the recordings on several threads); callers reset a block before
+        running it, so sharing one within a thread is safe - across threads it was not (two
+        recordings ran one block's state at once, and verdicts changed under load).
         """
-        key = (np.asarray(x, dtype=float).tobytes(), float(dt), tuple(sorted(self.fixed.items())))
+        key = (
+            np.asarray(x, dtype=float).tobytes(),
+            float(dt),
+            tuple(sorted(self.fixed.items())),
+            threading.get_ident(),
+        )
         cache = self.__dict__.setdefault("_blocks", {})
         blk = cache.get(key)
         if blk is None:

@@ -570,16 +570,38 @@ class Context:
         table = self.table(base)
         u = self.preisach_input(i, ins) if ins else r.u
         if fb:
-            blk = cast(OutputFeedback, fb[-1].cand.block(fb[-1].x, r.dt))
             if feedback_from is None:
+                blk = cast(OutputFeedback, fb[-1].cand.block(fb[-1].x, r.dt))
                 y, ue, _ = blk.simulate(table, u, r.state0)
             else:
-                prev = np.concatenate([feedback_from[:1], feedback_from[:-1]])
-                ue = np.clip(u + blk.run(prev), self.model.u_min, self.model.u_max)
+                ue = self._fed_back(i, u, fb[-1], feedback_from)
                 y = self.preisach(i, base, ue)
             return y, ue, Stage(i, u, table)
         y = self.preisach(i, base, u if ins else None)
         return y, u, Stage(i, u, table)
+
+    def _fed_back(self, i: int, u: Array, fb: FittedEffect, feedback_from: Array) -> Array:
+        """Return the relays' input (V): ``u`` plus the feedback of the previous sample."""
+        blk = fb.cand.block(fb.x, self.recs[i].dt)
+        prev = np.concatenate([feedback_from[:1], feedback_from[:-1]])
+        return np.clip(u + blk.run(prev), self.model.u_min, self.model.u_max)
+
+    def relay_input(
+        self, i: int, effects: Sequence[FittedEffect], feedback_from: Array | None
+    ) -> Array | None:
+        """Return the input (V) the relays see, when it follows without simulating them.
+
+        That is without a feedback effect, or with one driven by ``feedback_from``; None when
+        the feedback loop must be closed through the simulated output (use :meth:`stage`).
+        """
+        ins = [e for e in effects if e.cand.side == "input"]
+        fb = [e for e in effects if e.cand.side == "feedback"]
+        u = self.preisach_input(i, ins) if ins else self.recs[i].u
+        if not fb:
+            return u
+        if feedback_from is None:
+            return None
+        return self._fed_back(i, u, fb[-1], feedback_from)
 
     def anhysteretic(self, stage: Stage) -> Array:
         """Anhysteretic curve ``A(u)`` of the stage's table at its input (V), cached."""
@@ -665,7 +687,7 @@ class Context:
         every evaluation re-solves them by least squares for the candidate's parameters, with
         the blocks linearised about a reference base that is updated ``alternations`` times.
         """
-        if not self.refit:
+        if not self.refits(fixed):
             return fixed.plus(self._fit_params(cand, fixed, train, drift, None, profile=False))
         ref = fixed.base
         starts = None
@@ -679,6 +701,16 @@ class Context:
         assert eff is not None
         return fixed.plus(eff, ref)
 
+    def refits(self, fixed: Chain) -> bool:
+        """Whether a candidate after ``fixed`` is fitted with the Preisach weights refitted.
+
+        Not after a feedback effect: the weights were fitted with it in series-parallel form
+        (the relays driven by the measured output), which a further refit with the loop
+        closed through the simulated output cannot reproduce - on the yan9a recordings such
+        refits moved the weights by up to 70 % and the closed-loop predictions diverged.
+        """
+        return self.refit and not any(e.cand.side == "feedback" for e in fixed.effects)
+
     def covariance(self, chain: Chain, train: list[Mask], drift: bool = False) -> Array | None:
         """Block-clustered sandwich covariance of the last effect's parameters at the optimum."""
         eff = chain.effects[-1]
@@ -690,7 +722,7 @@ class Context:
             Chain(chain.base, chain.effects[:-1]),
             train,
             drift,
-            profile=self.refit,
+            profile=self.refits(Chain(chain.base, chain.effects[:-1])),
             reference=eff,
         )
         x = eff.x
@@ -844,8 +876,13 @@ class _Problem:
         def one(i: int) -> tuple[Array, Array, Array]:
             r = ctx.recs[i]
             fb = None if self.feedback_from is None else self.feedback_from[i]
-            P, ue, st = ctx.stage(i, self.fixed.base, effs, fb)
-            target = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y
+            # the reference base's output is needed only to linearise output blocks
+            ue_open = None if outs else ctx.relay_input(i, effs, fb)
+            if ue_open is None:
+                P, ue, st = ctx.stage(i, self.fixed.base, effs, fb)
+                target = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y
+            else:
+                ue, target = ue_open, r.y
             if coarse:
                 fold = np.full(r.n, -1, np.int32)
                 fold[self.coarse[i]] = 0
@@ -867,16 +904,19 @@ class _Problem:
         lam = 1e-7 * max(float(np.trace(N)) / p, 1e-300)
         N[np.diag_indices(p)] += lam
         rhs += lam * ctx.theta0
-        return linalg.solve(N, rhs, assume_a="pos")
+        # Cholesky without the condition estimate of linalg.solve (the ridge keeps N definite)
+        return linalg.cho_solve(linalg.cho_factor(N, check_finite=False), rhs, check_finite=False)
 
     def _profiled_predict(self, x: Array, coarse: bool = False) -> dict[int, Array]:
         theta = self.theta(x, coarse)
         if self.cand.side != "output" and self._last_u is not None:
             table = self.ctx.table(Base(theta))
-            Ps = {
-                i: _core.simulate(table, ue, self.ctx.recs[i].state0, "clamp")[0]
-                for i, ue in self._last_u.items()
-            }
+            recs, last = self.ctx.recs, self._last_u
+
+            def sim(i: int) -> Array:
+                return cast(Array, _core.simulate(table, last[i], recs[i].state0, "clamp")[0])
+
+            Ps = dict(zip(last, _pool().map(sim, last)))
         else:
             Rs = self.R if self.cand.side == "output" else self._last_R
             Ps = {i: R @ theta for i, R in Rs.items()}
@@ -937,12 +977,14 @@ class _Problem:
     def residuals(self, x: Array, coarse: bool = False) -> Array:
         self.ctx.n_evals += 1
         parts = []
-        preds = self._profiled_predict(x, coarse) if self.profile else None
-        for i, ix in enumerate(self.idx):
-            if ix.size == 0:
-                continue
-            pred = preds[i] if preds is not None else self.predict(i, x)
-            res = self.ctx.recs[i].y[ix] - pred[ix]
+        todo = [i for i, ix in enumerate(self.idx) if ix.size]
+        if self.profile:
+            preds = self._profiled_predict(x, coarse)
+        else:  # independent recordings, C++ simulations that release the GIL: one per core
+            preds = dict(zip(todo, _pool().map(lambda i: self.predict(i, x), todo)))
+        for i in todo:
+            ix = self.idx[i]
+            res = self.ctx.recs[i].y[ix] - preds[i][ix]
             pr = self.proj[i]
             if pr is not None:
                 A, Ginv = pr
@@ -1158,7 +1200,7 @@ def run_selection(
         for name, cand in remaining.items():
             t0 = _time.perf_counter()
             if isinstance(cand, DriftCandidate):
-                if ctx.refit:
+                if all(ctx.refits(ch) for ch in chains):
                     cc = [
                         Chain(ctx.refit_base(ch.effects, ch.base, f.train, True), ch.effects)
                         for ch, f in zip(chains, folds)

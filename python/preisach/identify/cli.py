@@ -21,13 +21,11 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from .identifiers import MAX_FOD_LEVELS
+
 __all__ = ["add_parser"]
 
 _POLICIES = ("burn-in", "negative", "positive", "anhysteretic")
-
-#: Largest ``--levels`` for fod/surface: the resolution of the built-in models (1 V steps on
-#: +-100 V).  The FOD grid costs O(levels^2) memory and more time (401 levels: ~10 s, 540 MB).
-MAX_FOD_LEVELS = 201
 
 
 def _load_recordings(paths: list[str]) -> list[Any]:
@@ -61,12 +59,6 @@ def _identify(args: argparse.Namespace) -> int:
 
     if args.levels is not None and args.levels < 3:
         raise ValueError(f"--levels: need at least 3 levels, got {args.levels}")
-    if args.method in ("fod", "surface") and args.levels is not None:
-        if args.levels > MAX_FOD_LEVELS:
-            raise ValueError(
-                f"--levels: at most {MAX_FOD_LEVELS} levels for --method {args.method} (the "
-                f"built-in models' resolution; the FOD grid grows as levels^2), got {args.levels}"
-            )
     if args.y_min_source is not None and args.method != "surface":
         raise ValueError("--y-min-source applies to --method surface only")
     if args.delay < 0:

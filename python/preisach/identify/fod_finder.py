@@ -230,6 +230,10 @@ class FODData:
     input_noise : float
         Estimated standard deviation (V) of the noise on the input, ``1.4826 MAD(diff(u, 2)) /
         sqrt(6)``; 0 for a noise-free piecewise-linear input.
+    input_units, output_units : str
+        Units of the input and output: the recording's ``input_units``/``output_units``
+        metadata when a recording was given (e.g. tesla and A m^2 for FORC data of a
+        magnetometer, see :mod:`preisach.forc`), else ``"V"``.  "V" above means these units.
 
     """
 
@@ -247,6 +251,8 @@ class FODData:
     levels_source: str
     n_samples: int
     input_noise: float = 0.0
+    input_units: str = "V"
+    output_units: str = "V"
 
     @property
     def used_curves(self) -> list[CurveRecord]:
@@ -277,6 +283,10 @@ class FODData:
 
     def report(self) -> str:
         """Readable multi-line summary: settings, grid coverage and one line per curve."""
+
+        def _v(x: float) -> str:  # an input value
+            return _fmt(x, self.input_units)
+
         n = self.levels.size
         fod = self.direction == "descending"
         kind = "FOD (first-order descending)" if fod else "FORC (first-order reversal)"
@@ -290,7 +300,9 @@ class FODData:
         measured = int(np.count_nonzero(self.count))
         repeated = int(np.count_nonzero(self.count >= 2))
         finite_spread = self.spread[np.isfinite(self.spread)]
-        spread_txt = _v(float(finite_spread.max())) if finite_spread.size else "n/a"
+        spread_txt = (
+            _fmt(float(finite_spread.max()), self.output_units) if finite_spread.size else "n/a"
+        )
         spacing = np.diff(self.levels)
         spacing_txt = (
             f"step {_v(float(spacing[0]))}" if np.allclose(spacing, spacing[0]) else "irregular"
@@ -313,7 +325,8 @@ class FODData:
         ]
         if self.curves:
             lines.append(
-                f"  {'#':>4}  {'t [s]':>21}  {'turn [V]':>10}  {'level':>5}  {'nodes':>5}  status"
+                f"  {'#':>4}  {'t [s]':>21}  {'turn [' + self.input_units + ']':>10}  "
+                f"{'level':>5}  {'nodes':>5}  status"
             )
         for c in self.curves:
             lvl = "-" if c.level is None else str(c.level)
@@ -427,11 +440,11 @@ def find_forc_curves(
 # ------------------------------------------------------------------------------------------
 # implementation
 # ------------------------------------------------------------------------------------------
-def _v(x: float) -> str:
-    """Format a voltage."""
+def _fmt(x: float, unit: str = "V") -> str:
+    """Format a value in ``unit`` (the input's, volts unless the recording says otherwise)."""
     if x == 0.0:
         x = 0.0  # no "-0"
-    return f"{x:.6g} V"
+    return f"{x:.6g} {unit}"
 
 
 @dataclass(frozen=True)
@@ -439,6 +452,7 @@ class _Frame:
     """Wording and sign of the working frame ``s = sign * u`` (FOD frame: sign = +1)."""
 
     sign: float
+    unit: str = "V"
 
     @property
     def fod(self) -> bool:
@@ -465,8 +479,8 @@ class _Frame:
         return "u_min" if self.fod else "u_max"
 
     def v(self, s: float) -> str:
-        """Format a working-frame value in the user's volts."""
-        return _v(self.sign * float(s))
+        """Format a working-frame value in the user's input unit."""
+        return _fmt(self.sign * float(s), self.unit)
 
 
 def _as_1d(name: str, a: Any) -> NDArray[np.float64]:
@@ -656,8 +670,8 @@ def _classify(
                     k,
                     n - 1,
                     False,
-                    f"too short: the recording ends within reversal_tol = {_v(rev_tol)} of the "
-                    f"{fr.turn_name} {fr.v(s[k])} (no {fr.branch})",
+                    "too short: the recording ends within reversal_tol = "
+                    f"{_fmt(rev_tol, fr.unit)} of the {fr.turn_name} {fr.v(s[k])} (no {fr.branch})",
                 )
             )
             continue
@@ -809,7 +823,12 @@ def _find(
     level_tol: float | None,
 ) -> FODData:
     ta, ua, ya = _validate(t, u, y)
-    fr = _Frame(sign)
+    meta = getattr(t, "metadata", None) if u is None else None
+    units = [
+        str(meta.get(k) or "V") if isinstance(meta, dict) else "V"
+        for k in ("input_units", "output_units")
+    ]
+    fr = _Frame(sign, units[0])
     lo = float(ua.min()) if u_min is None else float(u_min)
     hi = float(ua.max()) if u_max is None else float(u_max)
     if not (math.isfinite(lo) and math.isfinite(hi)):
@@ -897,7 +916,7 @@ def _find(
             if abs(lv[i] - turn_value) > lvl_tol:
                 reason = (
                     f"{fr.turn_name} {fr.v(turn_value)} not on the grid (nearest level "
-                    f"{fr.v(lv[i])}, level_tol = {_v(lvl_tol)}); kept as a raw curve"
+                    f"{fr.v(lv[i])}, level_tol = {_fmt(lvl_tol, fr.unit)}); kept as a raw curve"
                 )
             else:
                 level, used = i, True
@@ -972,4 +991,6 @@ def _find(
         levels_source=source,
         n_samples=int(ta.size),
         input_noise=noise,
+        input_units=units[0],
+        output_units=units[1],
     )

@@ -431,6 +431,12 @@ def _check_lengths(recs: Sequence[Any], names: Sequence[str]) -> None:
             raise ValueError(f"{nm}: a recording needs at least 2 samples, got {n}")
 
 
+#: Most levels of an FOD grid given to :func:`identify_fod` / :func:`identify_surface`: the
+#: resolution of the built-in models (1 V steps on +-100 V).  The grid's cost grows as
+#: levels^2 (401 levels: ~10 s and 540 MB; 1000 levels ran for minutes).
+MAX_FOD_LEVELS = 201
+
+
 def _levels_arg(levels: ArrayLike | int | None, lo: float, hi: float) -> NDArray[np.float64] | None:
     if levels is None:
         return None
@@ -513,6 +519,12 @@ def _fod_data(
     lo = min(float(np.min(r.u)) for r in recs)
     hi = max(float(np.max(r.u)) for r in recs)
     lv = _levels_arg(levels, lo, hi)
+    if lv is not None and lv.size > MAX_FOD_LEVELS:
+        raise ValueError(
+            f"levels: at most {MAX_FOD_LEVELS} levels for an FOD grid (identify_fod, "
+            "identify_surface; the built-in models' resolution - the grid's cost grows as "
+            f"levels^2), got {lv.size}"
+        )
     parts: list[FODData] = []
     usage: list[DataUsage] = []
     for name, rec in zip(names, recs):
@@ -711,8 +723,8 @@ def identify_fod(
         already.  Several recordings are merged node by node (count-weighted means).
     levels : int or array_like, optional
         FOD grid: a number of equally spaced levels over the recordings' input range, or the
-        levels (V).  Default: inferred from the turning values (see
-        :func:`~preisach.identify.find_fod_curves`).
+        levels (V); at most :data:`MAX_FOD_LEVELS` (201).  Default: inferred from the turning
+        values (see :func:`~preisach.identify.find_fod_curves`).
     project : bool
         Project the table to the nearest one with all cell masses >= 0
         (:func:`project_nonnegative`); the report gives the mass moved.
