@@ -2,6 +2,7 @@
 
 import _thread
 import math
+import signal
 import time
 
 import numpy as np
@@ -129,7 +130,16 @@ def test_callback_exception_is_reraised_after_the_file_is_finished(model, tmp_pa
     assert not rig.busy
 
 
-def test_keyboard_interrupt_requests_a_stop_and_finishes_the_file(model, tmp_path):
+@pytest.fixture
+def sigint_raises():
+    """Python's Ctrl-C handler, also where SIGINT is inherited ignored (a shell's background job:
+    there ``interrupt_main`` is silently dropped)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_keyboard_interrupt_requests_a_stop_and_finishes_the_file(model, tmp_path, sigint_raises):
     rig = daq.virtual_ss15(model)
     calls = []
 

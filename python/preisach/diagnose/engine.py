@@ -20,7 +20,8 @@ Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing descriptio
    re-solved by least squares for the candidate's current blocks (the sweep carries the
    effect, so the identified model has absorbed part of it; refitting undoes that).
    The weights are profiled out of every evaluation of the candidate's parameters (blocks
-   linearised about a reference base that is updated twice).
+   linearised about a reference base that is updated twice).  Once a feedback effect is
+   kept, later candidates keep the weights it was fitted with (:meth:`Context.refits`).
 5. Greedy forward selection.  In each step every remaining candidate is fitted on each
    fold's training samples (with the effects kept so far) and predicts the held-out ones;
    the pooled held-out residual scores it.  A candidate may be kept only if it lowers the
