@@ -437,42 +437,36 @@ private:
 
 TEST_CASE("comedi device: close ramps every output to 0 V no faster than the ramp rate") {
     // Two outputs on a 12-bit AO subdevice (+/-10 V, 204.75 codes per volt), one input.
-    const std::string setup = R"(
-        open /dev/comedi0 -> 1
-        board_name -> b
-        find_subdevice_by_type 2 0 -> 1
-        get_n_channels 1 -> 4
-        find_range 1 0 -10 10 -> 0
-        get_maxdata 1 0 -> 4095
-        get_subdevice_flags 1 -> 0
-        hardcal_converter 1 0 0 from -> 0 : 1 -10 0 204.75
-        find_subdevice_by_type 2 0 -> 1
-        get_n_channels 1 -> 4
-        find_range 1 1 -10 10 -> 0
-        get_maxdata 1 1 -> 4095
-        get_subdevice_flags 1 -> 0
-        hardcal_converter 1 1 0 from -> 0 : 1 -10 0 204.75
-        find_subdevice_by_type 1 0 -> 0
-        get_n_channels 0 -> 8
-        find_range 0 0 -5 5 -> 0
-        get_maxdata 0 0 -> 8191
-        get_subdevice_flags 0 -> 0
-        hardcal_converter 0 0 0 to -> 0 : 1 0 -5 0.001220703125
-    )";
+    // One channel's configuration: subdevice of `type` (2 AO, 1 AI), hardware calibration.
+    auto channel = [](int type, int sub, int chan, int n_chan, int lo, int hi, int maxdata,
+                      const std::string& conversion) {
+        const std::string sc = std::to_string(sub) + " " + std::to_string(chan);
+        return "find_subdevice_by_type " + std::to_string(type) + " 0 -> " + std::to_string(sub) + "\n" +
+               "get_n_channels " + std::to_string(sub) + " -> " + std::to_string(n_chan) + "\n" +
+               "find_range " + sc + " " + std::to_string(lo) + " " + std::to_string(hi) + " -> 0\n" +
+               "get_maxdata " + sc + " -> " + std::to_string(maxdata) + "\n" +
+               "get_subdevice_flags " + std::to_string(sub) + " -> 0\n" +
+               "hardcal_converter " + sc + " 0 " + conversion + "\n";
+    };
+    const std::string setup = "open /dev/comedi0 -> 1\nboard_name -> b\n" +
+                              channel(2, 1, 0, 4, -10, 10, 4095, "from -> 0 : 1 -10 0 204.75") +
+                              channel(2, 1, 1, 4, -10, 10, 4095, "from -> 0 : 1 -10 0 204.75") +
+                              channel(1, 0, 0, 8, -5, 5, 8191, "to -> 0 : 1 0 -5 0.001220703125");
     Channel a{"A", 0, -1, -10.0, 10.0, {-14.12, -0.02}, "V", 0};  // the SS15 amplifier
     Channel b{"B", 1, -1, -10.0, 10.0, {1.0, 0.0}, "V", 0};       // unit gain
     Channel in{"y", 0, -1, -5.0, 5.0, {1.0, 0.0}, "V", 0};
     auto code = [](double v) { return unsigned(std::nearbyint(204.75 * (v + 10.0))); };
+    // One write of both outputs (connector volts), as the device issues it.
+    auto writes = [&](double va, double vb) {
+        return "data_write 1 0 0 0 " + std::to_string(code(va)) + " -> 0\ndata_write 1 1 0 0 " +
+               std::to_string(code(vb)) + " -> 0\n";
+    };
     // A at -2 V and B at +0.5 V (connector); 100 V/s at the actuator, a write every 2 ms:
     // A may move 0.2 / 14.12 = 14.2 mV per write -> ceil(2 / 0.014164) = 142 writes; B (0.2 V per
     // write) alone would need 3, but both move together in A's 142 steps.
     const int n = 142;
-    std::string protocol = setup + "data_write 1 0 0 0 " + std::to_string(code(-2.0)) + " -> 0\n" +
-                           "data_write 1 1 0 0 " + std::to_string(code(0.5)) + " -> 0\n";
-    for (int s = 1; s <= n; ++s) {
-        protocol += "data_write 1 0 0 0 " + std::to_string(code(-2.0 * (n - s) / n)) + " -> 0\n";
-        protocol += "data_write 1 1 0 0 " + std::to_string(code(0.5 * (n - s) / n)) + " -> 0\n";
-    }
+    std::string protocol = setup + writes(-2.0, 0.5);
+    for (int s = 1; s <= n; ++s) protocol += writes(-2.0 * (n - s) / n, 0.5 * (n - s) / n);
     protocol += "close ->\n";
     ComediOptions opt;
     opt.close_ramp_rate = 100.0;
@@ -505,12 +499,7 @@ TEST_CASE("comedi device: close ramps every output to 0 V no faster than the ram
     // The destructor ramps too: 0.1 V at A with 1000 V/s and 1 ms is 1 / 14.12 = 70.8 mV per
     // write -> 2 writes.  A spy keeps the replay alive after the device is gone.
     {
-        std::string p = setup + "data_write 1 0 0 0 " + std::to_string(code(0.1)) + " -> 0\n" +
-                        "data_write 1 1 0 0 " + std::to_string(code(0.0)) + " -> 0\n";
-        p += "data_write 1 0 0 0 " + std::to_string(code(0.05)) + " -> 0\ndata_write 1 1 0 0 " +
-             std::to_string(code(0.0)) + " -> 0\n";
-        p += "data_write 1 0 0 0 " + std::to_string(code(0.0)) + " -> 0\ndata_write 1 1 0 0 " +
-             std::to_string(code(0.0)) + " -> 0\nclose ->\n";
+        const std::string p = setup + writes(0.1, 0.0) + writes(0.05, 0.0) + writes(0.0, 0.0) + "close ->\n";
         auto replay = std::make_shared<ComediReplay>(p);
         ComediOptions fast;
         fast.close_ramp_rate = 1000.0;
