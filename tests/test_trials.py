@@ -286,8 +286,8 @@ def _planning_fails(monkeypatch, exc):
             raise exc
         return real(plan, step, u_now)
 
-    monkeypatch.setattr(trials, "check_trial", trials.load_trial)
-    monkeypatch.setattr(trials, "step_waveform", plan)
+    monkeypatch.setattr(trials.run, "check_trial", trials.load_trial)
+    monkeypatch.setattr(trials.run, "step_waveform", plan)
 
 
 def _check_safety_ramp(out, status):
