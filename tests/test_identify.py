@@ -442,3 +442,30 @@ def test_nonnegative_qp_solver_against_scipy_nnls():
     x2, _, it2, _ = solve_nonnegative_qp(A.T @ A, A.T @ b, free)  # warm start: one iteration
     assert it2 == 1 and np.allclose(x2, x)
     assert math.isfinite(float(x.sum()))
+
+
+def test_identifiers_return_the_report_which_unpacks_as_model_and_report(fitted, sweep):
+    rep = fitted["fod"]
+    assert isinstance(rep, IdentificationReport)
+    model, again = rep
+    assert again is rep and model is rep.model
+    assert rep[0] is rep.model and rep[1] is rep
+    assert rep.input_units == "V" and rep.output_units == "V"
+    # the recording's units are the report's units
+    rec = Recording.from_arrays(
+        u=sweep.u, y=sweep.y, sample_time=1e-3, input_units="V", output_units="um"
+    )
+    text = identify_fod(rec).summary()
+    assert "rms (um)" in text and "rms (V)" not in text
+
+
+def test_verification_does_not_import_identification():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, preisach.verify; "
+        "print(any(m.startswith('preisach.identify') for m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

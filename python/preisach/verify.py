@@ -21,7 +21,7 @@ output range. Thus, this is considered to be sufficiently close to zero").
 Initial state
 -------------
 A recording does not say what state the model starts in.  :func:`verify` and :func:`predict`
-take the policies of :mod:`preisach.identify.lsq`: ``"burn-in"`` (default) simulates from
+take the policies of :mod:`preisach.initial_state`: ``"burn-in"`` (default) simulates from
 negative saturation and scores only the samples from the burn-in end on - the first sample at
 the model's ``u_min`` or ``u_max`` (from then on the state is exact), or where the recording has
 visited both its own extremes (then relays it never switches are assumed at -1); or
@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .errors import PreisachWarning
-from .identify.lsq import InitialState, burn_in_end, check_policy, initial_state_for
+from .initial_state import InitialState, burn_in_end, check_policy, initial_state_for
 from .model import PreisachModel
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -5,19 +5,16 @@
 * :func:`fit_sqrt_surface` identifies the constrained square-root FOD surface of the thesis
   (section 3.3.2, Eq 3.2) from such a grid;
 * :func:`identify_fod` (Mayergoyz, C++), :func:`identify_surface` (square-root surface) and
-  :func:`identify_lsq` (least squares on every sample of any recording) each return a
-  ``(PreisachModel, IdentificationReport)``; :func:`project_nonnegative` and
-  :func:`weight_density` give the nearest model in Mp and the split mu = v + kappa delta.
+  :func:`identify_lsq` (least squares on every sample of any recording) each return an
+  :class:`IdentificationReport` (``report.model``; it unpacks as ``model, report``);
+  :func:`project_nonnegative` and :func:`weight_density` give the nearest model in Mp and the
+  split mu = v + kappa delta.
 """
 
 from __future__ import annotations
 
 from .fod_finder import CurveRecord, FODData, find_fod_curves, find_forc_curves
 from .identifiers import (
-    DataUsage,
-    IdentificationReport,
-    ProjectionSummary,
-    Residuals,
     identify_fod,
     identify_lsq,
     identify_surface,
@@ -25,6 +22,7 @@ from .identifiers import (
     weight_density,
 )
 from .lsq import LsqDetails
+from .report import DataUsage, IdentificationReport, ProjectionSummary, Residuals
 from .surface_fit import SurfaceFitResult, fit_sqrt_surface, format_table
 
 __all__ = [

@@ -9,8 +9,9 @@
 
 All three accept :class:`~preisach.Recording` objects (anything with ``t``, ``u``, ``y`` in s, V,
 V); the first two also accept :class:`~preisach.identify.FODData` (the FOD curves already
-found).  Each returns ``(PreisachModel, IdentificationReport)``; the report lists the data used,
-the residuals (max and RMS in volts and in percent of the output range), warnings, and the
+found).  Each returns an :class:`~preisach.identify.IdentificationReport` (``report.model`` is
+the model; it unpacks as ``model, report``); the report lists the data used, the residuals (max
+and RMS in the recording's output units and in percent of the output range), warnings, and the
 method's own details (FOD coverage, surface parameters, projection, cross-validation curve).
 """
 
@@ -19,8 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Union
+from typing import Any, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -30,15 +30,12 @@ from ..model import PreisachModel
 from .fod_finder import FODData, find_fod_curves
 from .lsq import (
     InitialState,
-    LsqDetails,
     check_policy,
     identify_lsq_core,
     weights_matrix,
 )
-from .surface_fit import SurfaceFitResult, fit_sqrt_surface
-
-if TYPE_CHECKING:  # pragma: no cover
-    from matplotlib.figure import Figure
+from .report import DataUsage, IdentificationReport, ProjectionSummary, Residuals
+from .surface_fit import fit_sqrt_surface
 
 __all__ = [
     "DataUsage",
@@ -53,331 +50,6 @@ __all__ = [
 ]
 
 Data = Union[FODData, Any, Sequence[Any]]
-
-
-# ------------------------------------------------------------------------------------------
-# report
-# ------------------------------------------------------------------------------------------
-@dataclass
-class Residuals:
-    """Residual statistics of a model against some data (volts and % of the output range).
-
-    Attributes
-    ----------
-    name : str
-        What was compared (an experiment, or ``"FOD nodes"``).
-    n : int
-        Number of values compared.
-    max_error, rms_error : float
-        ``max |e|`` and ``sqrt(mean e^2)`` (V), ``e`` = model - measurement.
-    output_range : float
-        Range (V) the percentages refer to.
-
-    """
-
-    name: str
-    n: int
-    max_error: float
-    rms_error: float
-    output_range: float
-
-    @property
-    def max_pct(self) -> float:
-        """``max_error`` in % of ``output_range``."""
-        return 100.0 * self.max_error / self.output_range
-
-    @property
-    def rms_pct(self) -> float:
-        """``rms_error`` in % of ``output_range``."""
-        return 100.0 * self.rms_error / self.output_range
-
-    @classmethod
-    def of(cls, name: str, e: NDArray[np.float64], output_range: float) -> Residuals:
-        """Statistics of the errors ``e`` (V)."""
-        e = np.asarray(e, dtype=float)
-        return cls(
-            name,
-            int(e.size),
-            float(np.max(np.abs(e))) if e.size else 0.0,
-            float(np.sqrt(np.mean(e * e))) if e.size else 0.0,
-            float(output_range),
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly form."""
-        return {
-            "name": self.name,
-            "n": self.n,
-            "max_error": self.max_error,
-            "rms_error": self.rms_error,
-            "output_range": self.output_range,
-            "max_pct": self.max_pct,
-            "rms_pct": self.rms_pct,
-        }
-
-
-@dataclass
-class DataUsage:
-    """Which data an identification used.
-
-    Attributes
-    ----------
-    name : str
-        Experiment name (``experiment`` metadata, or ``"recording k"``).
-    n_samples : int
-        Samples in the recording.
-    n_used : int
-        Samples the identification used: fitted samples (lsq) or samples on used FOD curves.
-    note : str
-        Details (curves used/rejected, burn-in, ...).
-
-    """
-
-    name: str
-    n_samples: int
-    n_used: int
-    note: str = ""
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly form."""
-        return dict(self.__dict__)
-
-
-@dataclass
-class ProjectionSummary:
-    """How much the projection to ``mu >= 0`` changed the table (all masses in volts).
-
-    Attributes
-    ----------
-    n_negative : int
-        Cells with negative mass before.
-    negative_mass : float
-        Sum of the negative masses before (V, <= 0).
-    mass_moved : float
-        ``sum |w' - w|`` over the cells (V).
-    total_mass : float
-        ``sum |w|`` before (V).
-    max_node_change, rms_node_change : float
-        Largest and RMS change of the Everett nodes (V); outputs move by at most twice the
-        largest.
-    kept : str
-        What was kept exactly: ``"y_min and y_max"`` or ``"y_min"``.
-    converged : bool
-        Whether the projection converged to its tolerance.
-    sweeps : int
-        Sweeps of Hildreth's method.
-
-    """
-
-    n_negative: int
-    negative_mass: float
-    mass_moved: float
-    total_mass: float
-    max_node_change: float
-    rms_node_change: float
-    kept: str
-    converged: bool
-    sweeps: int
-
-    @property
-    def fraction_moved(self) -> float:
-        """``mass_moved / total_mass`` (0 for an empty table)."""
-        return self.mass_moved / self.total_mass if self.total_mass > 0 else 0.0
-
-    @classmethod
-    def of(cls, r: _core.ProjectionResult) -> ProjectionSummary:
-        """From the C++ result."""
-        return cls(
-            int(r.n_negative),
-            float(r.negative_mass),
-            float(r.mass_moved),
-            float(r.total_mass),
-            float(r.max_node_change),
-            float(r.rms_node_change),
-            "y_min and y_max" if r.kept_y_max else "y_min",
-            bool(r.converged),
-            int(r.sweeps),
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly form."""
-        return {**self.__dict__, "fraction_moved": self.fraction_moved}
-
-
-@dataclass
-class IdentificationReport:
-    """What an identifier did and how well the model fits.
-
-    Attributes
-    ----------
-    method : str
-        ``"fod"``, ``"surface"`` or ``"lsq"``.
-    model : PreisachModel
-        The identified model.
-    data : list of DataUsage
-        Recordings (or FOD data) used.
-    residuals : list of Residuals
-        Per recording: the model simulated on the recording's input (burn-in policy of
-        :func:`preisach.verify.verify`).  Empty when only FOD data were given.
-    node_residuals : Residuals or None
-        fod/surface: model FOD outputs against the measured FOD nodes.
-    warnings : list of str
-    fod : FODData or None
-        The FOD curves found (merged over the recordings).
-    surface_fit : SurfaceFitResult or None
-        surface: the square-root fit (Table 3.1-style parameters, fit errors).
-    projection : ProjectionSummary or None
-        fod with ``project=True``: the mass moved.
-    lsq : LsqDetails or None
-        lsq: cross-validation curve, chosen lambda, ...
-    negative_cells : int
-        Cells of the final table with negative mass (not in Mp when > 0).
-    elapsed : float
-        Wall-clock seconds of the identification.
-
-    """
-
-    method: str
-    model: PreisachModel
-    data: list[DataUsage] = field(default_factory=list)
-    residuals: list[Residuals] = field(default_factory=list)
-    node_residuals: Residuals | None = None
-    warnings: list[str] = field(default_factory=list)
-    fod: FODData | None = field(default=None, repr=False)
-    surface_fit: SurfaceFitResult | None = field(default=None, repr=False)
-    projection: ProjectionSummary | None = None
-    lsq: LsqDetails | None = field(default=None, repr=False)
-    negative_cells: int = 0
-    elapsed: float = 0.0
-
-    def summary(self) -> str:
-        """Readable multi-line report."""
-        m = self.model
-        names = {
-            "fod": "Mayergoyz (FOD grid -> Everett table)",
-            "surface": "square-root FOD surface (thesis Eq 3.2)",
-            "lsq": "least squares on every sample",
-        }
-        lines = [
-            f"identification: {names.get(self.method, self.method)}",
-            f"  model: {m!r}",
-            f"  levels: {m.levels.size} from {m.u_min:.6g} to {m.u_max:.6g} V; "
-            + (
-                "in Mp (all cell masses >= 0)"
-                if self.negative_cells == 0
-                else f"{self.negative_cells} cells with negative mass (not in Mp)"
-            ),
-            f"  time: {self.elapsed:.3f} s",
-            "  data:",
-        ]
-        for d in self.data:
-            lines.append(
-                f"    {d.name}: {d.n_used} of {d.n_samples} samples used"
-                + (f"; {d.note}" if d.note else "")
-            )
-        if self.fod is not None:
-            n = self.fod.levels.size
-            lines.append(
-                f"  FOD nodes measured: {int(np.count_nonzero(self.fod.count))} of "
-                f"{n * (n + 1) // 2}"
-            )
-        if self.surface_fit is not None:
-            sf = self.surface_fit
-            lines.append("  surface parameters (Table 3.1 layout):")
-            lines += ["    " + ln for ln in sf.table().splitlines()]
-            lines.append(
-                f"  surface fit: rms {sf.rmse:.4g} V, max {sf.max_error:.4g} V over "
-                f"{sf.n_points} FOD points"
-            )
-        if self.projection is not None:
-            p = self.projection
-            lines.append(
-                f"  projection to mu >= 0: {p.n_negative} negative cells (sum "
-                f"{p.negative_mass:.4g} V); moved {p.mass_moved:.4g} V = "
-                f"{100 * p.fraction_moved:.3g} % of the total mass {p.total_mass:.4g} V; "
-                f"max node change {p.max_node_change:.3g} V; kept {p.kept}"
-                + ("" if p.converged else " (did not converge)")
-            )
-        if self.lsq is not None:
-            q = self.lsq
-            lines.append(
-                f"  least squares: {q.n_samples} samples fitted ({q.n_skipped} not: "
-                f"burn-in/delay), {q.n_params} parameters, {q.n_zero} masses at 0, "
-                f"initial state '{q.initial_state}', delay {q.delay}"
-            )
-            lines.append(
-                f"  smoothness lambda by {q.folds}-fold CV over time blocks: chosen "
-                f"{q.chosen_lambda:.3g}; fit rms {q.fit_rms:.4g} V"
-            )
-            lines.append("    lambda     CV rms (V)")
-            for lv, cv in zip(q.lambdas, q.cv_rms):
-                mark = "  <-" if lv == q.chosen_lambda else ""
-                lines.append(f"    {lv:<10.3g} {cv:.5g}{mark}")
-        if self.node_residuals is not None:
-            r = self.node_residuals
-            lines.append(
-                f"  residuals at the FOD nodes: max {r.max_error:.4g} V "
-                f"({r.max_pct:.3f} %), rms {r.rms_error:.4g} V ({r.rms_pct:.3f} %) of "
-                f"{r.output_range:.4g} V, {r.n} nodes"
-            )
-        if self.residuals:
-            lines.append("  residuals on the recordings (model simulated on their inputs):")
-            lines.append(
-                f"    {'experiment':<24} {'max (V)':>10} {'rms (V)':>10} {'max %':>8} {'rms %':>8}"
-            )
-            for r in self.residuals:
-                lines.append(
-                    f"    {r.name[:24]:<24} {r.max_error:>10.4g} {r.rms_error:>10.4g} "
-                    f"{r.max_pct:>8.3f} {r.rms_pct:>8.3f}"
-                )
-        if self.warnings:
-            lines.append("  warnings:")
-            lines += [f"    - {w}" for w in self.warnings]
-        return "\n".join(lines)
-
-    def __str__(self) -> str:
-        return self.summary()
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly form (no arrays of samples)."""
-        out: dict[str, Any] = {
-            "method": self.method,
-            "model": repr(self.model),
-            "levels": self.model.levels.tolist(),
-            "y_min": self.model.y_min,
-            "y_max": self.model.y_max,
-            "negative_cells": self.negative_cells,
-            "elapsed": self.elapsed,
-            "data": [d.to_dict() for d in self.data],
-            "residuals": [r.to_dict() for r in self.residuals],
-            "node_residuals": None
-            if self.node_residuals is None
-            else self.node_residuals.to_dict(),
-            "warnings": list(self.warnings),
-            "projection": None if self.projection is None else self.projection.to_dict(),
-            "lsq": None if self.lsq is None else self.lsq.to_dict(),
-        }
-        if self.surface_fit is not None:
-            sf = self.surface_fit
-            out["surface"] = {
-                **sf.surface.to_dict(),
-                "rmse": sf.rmse,
-                "max_error": sf.max_error,
-                "root_sum_sq_error": sf.root_sum_sq_error,
-                "n_points": sf.n_points,
-            }
-        return out
-
-    def plot(self, *, fig: Figure | None = None) -> Figure:
-        """Draw the identification: FOD data and model, weight density, kappa, CV curve.
-
-        Six panels (:func:`preisach.identify.plots.plot_report`): the FOD data with the model's
-        FOD curves (fod/surface) or the cross-validation curve (lsq), the FOD surface in
-        (alpha, beta) and (r, s), the density v in both, and kappa.  Returns the Figure.
-        """
-        from .plots import plot_report
-
-        return plot_report(self, fig=fig)
 
 
 # ------------------------------------------------------------------------------------------
@@ -506,10 +178,11 @@ def _fod_data(
         n_used = sum(c.stop - c.turn + 1 for c in data.used_curves)
         only = [
             DataUsage(
-                "FOD data",
-                data.n_samples,
-                n_used,
-                f"{len(data.used_curves)} FOD curves used, {len(data.rejected_curves)} rejected",
+                name="FOD data",
+                n_samples=data.n_samples,
+                n_used=n_used,
+                note=f"{len(data.used_curves)} FOD curves used, "
+                f"{len(data.rejected_curves)} rejected",
             )
         ]
         return data, [], [], only
@@ -538,10 +211,10 @@ def _fod_data(
         used = fd.used_curves
         usage.append(
             DataUsage(
-                name,
-                fd.n_samples,
-                sum(c.stop - c.turn + 1 for c in used),
-                f"{len(used)} FOD curves used, {len(fd.rejected_curves)} rejected",
+                name=name,
+                n_samples=fd.n_samples,
+                n_used=sum(c.stop - c.turn + 1 for c in used),
+                note=f"{len(used)} FOD curves used, {len(fd.rejected_curves)} rejected",
             )
         )
     merged = _merge_fod(parts)
@@ -605,7 +278,13 @@ def _recording_residuals(
         warn_out_of_range=False,
     )
     res = [
-        Residuals(r.experiment, r.n_samples, r.max_error, r.rms_error, r.output_range)
+        Residuals(
+            name=r.experiment,
+            n=r.n_samples,
+            max_error=r.max_error,
+            rms_error=r.rms_error,
+            output_range=r.output_range,
+        )
         for r in table.rows
     ]
     warn = [
@@ -622,6 +301,15 @@ def _recording_residuals(
         if r.n_out_of_range
     ]
     return res, warn
+
+
+def _units(recs: Sequence[Any]) -> dict[str, str]:
+    """``input_units`` and ``output_units`` of the recordings (``"V"`` when not stated)."""
+    out = {}
+    for key in ("input_units", "output_units"):
+        found = {str((getattr(r, "metadata", None) or {}).get(key, "V")) or "V" for r in recs}
+        out[key] = " / ".join(sorted(found)) or "V"
+    return out
 
 
 def _negative_cells(model: PreisachModel) -> int:
@@ -713,7 +401,7 @@ def identify_fod(
     initial_state: InitialState = "burn-in",
     delay: int = 0,
     **finder_options: Any,
-) -> tuple[PreisachModel, IdentificationReport]:
+) -> IdentificationReport:
     """Mayergoyz identification: FOD curves -> Everett table (thesis §2.6, Eq 2.12-2.14).
 
     Parameters
@@ -744,9 +432,9 @@ def identify_fod(
 
     Returns
     -------
-    model : PreisachModel
-        On the FOD levels; ``y_min`` is the mean measured FOD end point.
-    report : IdentificationReport
+    IdentificationReport
+        ``report.model`` on the FOD levels (``y_min`` is the mean measured FOD end point);
+        unpacks as ``model, report``.
 
     """
     t0 = time.perf_counter()
@@ -794,21 +482,21 @@ def identify_fod(
     rng = _output_range(fd, recs)
     node_res = _node_residuals(model, fd, rng)
     res, w2 = _recording_residuals(model, recs, names, initial_state, delay)
-    report = IdentificationReport(
-        "fod",
-        model,
-        usage,
-        res,
-        node_res,
-        warnings + w2,
-        fd,
-        None,
-        proj,
-        None,
-        neg,
-        time.perf_counter() - t0,
+    return IdentificationReport(
+        method="fod",
+        model=model,
+        data=usage,
+        residuals=res,
+        node_residuals=node_res,
+        warnings=warnings + w2,
+        fod=fd,
+        projection=proj,
+        negative_cells=neg,
+        elapsed=time.perf_counter() - t0,
+        input_units=_units(recs)["input_units"],
+        output_units=_units(recs)["output_units"],
+        delay=delay,
     )
-    return model, report
 
 
 def identify_surface(
@@ -823,7 +511,7 @@ def identify_surface(
     initial_state: InitialState = "burn-in",
     delay: int = 0,
     **finder_options: Any,
-) -> tuple[PreisachModel, IdentificationReport]:
+) -> IdentificationReport:
     """Square-root FOD surface identification (thesis §3.3.2, Eq 3.1-3.2), tabulated.
 
     The FOD grid is found as for :func:`identify_fod`, fitted by
@@ -855,9 +543,9 @@ def identify_surface(
 
     Returns
     -------
-    model : PreisachModel
-    report : IdentificationReport
-        ``surface_fit`` holds the Table 3.1-style parameters and fit errors.
+    IdentificationReport
+        ``report.model``; ``surface_fit`` holds the Table 3.1-style parameters and fit errors.
+        Unpacks as ``model, report``.
 
     """
     t0 = time.perf_counter()
@@ -881,21 +569,21 @@ def identify_surface(
     rng = _output_range(fd, recs)
     node_res = _node_residuals(model, fd, rng)
     res, w2 = _recording_residuals(model, recs, names, initial_state, delay)
-    report = IdentificationReport(
-        "surface",
-        model,
-        usage,
-        res,
-        node_res,
-        warnings + w2,
-        fd,
-        fit,
-        None,
-        None,
-        neg,
-        time.perf_counter() - t0,
+    return IdentificationReport(
+        method="surface",
+        model=model,
+        data=usage,
+        residuals=res,
+        node_residuals=node_res,
+        warnings=warnings + w2,
+        fod=fd,
+        surface_fit=fit,
+        negative_cells=neg,
+        elapsed=time.perf_counter() - t0,
+        input_units=_units(recs)["input_units"],
+        output_units=_units(recs)["output_units"],
+        delay=delay,
     )
-    return model, report
 
 
 def identify_lsq(
@@ -909,7 +597,7 @@ def identify_lsq(
     nonnegative: bool = True,
     u_range: tuple[float, float] | None = None,
     name: str = "",
-) -> tuple[PreisachModel, IdentificationReport]:
+) -> IdentificationReport:
     """Least-squares identification of the Everett table from arbitrary recordings.
 
     Every sample is used: the model output is linear in the table, so the cell masses ``w``
@@ -943,9 +631,9 @@ def identify_lsq(
 
     Returns
     -------
-    model : PreisachModel
-    report : IdentificationReport
-        ``lsq`` holds the cross-validation curve and the chosen lambda.
+    IdentificationReport
+        ``report.model``; ``lsq`` holds the cross-validation curve and the chosen lambda.
+        Unpacks as ``model, report``.
 
     """
     t0 = time.perf_counter()
@@ -988,10 +676,10 @@ def identify_lsq(
     }
     usage = [
         DataUsage(
-            u["name"],
-            u["n_samples"],
-            u["n_used"],
-            f"fitted from sample {u['first_used']}"
+            name=u["name"],
+            n_samples=u["n_samples"],
+            n_used=u["n_used"],
+            note=f"fitted from sample {u['first_used']}"
             + ("" if u["exact_state"] else " (state not exact)"),
         )
         for u in usage_raw
@@ -1002,18 +690,16 @@ def identify_lsq(
     )
     warnings += w_res
     neg = _negative_cells(model)
-    report = IdentificationReport(
-        "lsq",
-        model,
-        usage,
-        res,
-        None,
-        warnings,
-        None,
-        None,
-        None,
-        details,
-        neg,
-        time.perf_counter() - t0,
+    return IdentificationReport(
+        method="lsq",
+        model=model,
+        data=usage,
+        residuals=res,
+        warnings=warnings,
+        lsq=details,
+        negative_cells=neg,
+        elapsed=time.perf_counter() - t0,
+        input_units=_units(recs)["input_units"],
+        output_units=_units(recs)["output_units"],
+        delay=details.delay,
     )
-    return model, report

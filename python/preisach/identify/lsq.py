@@ -53,7 +53,7 @@ import math
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -61,7 +61,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from threadpoolctl import threadpool_limits
 
 from .. import _core
-from ..model import PreisachModel, State
+from ..initial_state import InitialState, burn_in_end, check_policy, initial_state_for
 
 __all__ = [
     "LsqDetails",
@@ -75,9 +75,6 @@ __all__ = [
 COARSE_LAMBDAS: tuple[float, ...] = (1e-8, 1e-6, 1e-4, 1e-2, 1.0, 1e2)
 #: Largest table identify_lsq accepts (the Gram matrices are dense, (n(n-1)/2 + 1)^2 doubles).
 MAX_LEVELS = 81
-
-InitialState = Union[str, State]
-_POLICIES = ("burn-in", "negative", "positive", "anhysteretic")
 
 
 @dataclass
@@ -142,6 +139,21 @@ class LsqDetails:
     solver_iterations: int
     timings: dict[str, float] = field(default_factory=dict)
 
+    def summary_lines(self, units: str = "V") -> list[str]:
+        """Lines of the identification report (errors in the output ``units``)."""
+        lines = [
+            f"  least squares: {self.n_samples} samples fitted ({self.n_skipped} not: "
+            f"burn-in/delay), {self.n_params} parameters, {self.n_zero} masses at 0, "
+            f"initial state '{self.initial_state}', delay {self.delay}",
+            f"  smoothness lambda by {self.folds}-fold CV over time blocks: chosen "
+            f"{self.chosen_lambda:.3g}; fit rms {self.fit_rms:.4g} {units}",
+            f"    lambda     CV rms ({units})",
+        ]
+        for lv, cv in zip(self.lambdas, self.cv_rms):
+            mark = "  <-" if lv == self.chosen_lambda else ""
+            lines.append(f"    {lv:<10.3g} {cv:.5g}{mark}")
+        return lines
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly form."""
         return {
@@ -163,69 +175,6 @@ class LsqDetails:
             "solver_iterations": self.solver_iterations,
             "timings": dict(self.timings),
         }
-
-
-# ------------------------------------------------------------------------------------------
-# initial state and burn-in
-# ------------------------------------------------------------------------------------------
-def burn_in_end(u: ArrayLike, u_min: float, u_max: float) -> tuple[int, bool]:
-    """First sample from which a recording's output is determined by its input (see module doc).
-
-    Parameters
-    ----------
-    u : array_like
-        Input samples (V).
-    u_min, u_max : float
-        Input range of the table (V); inputs outside are clamped by the model.
-
-    Returns
-    -------
-    index : int
-        Samples ``index, index + 1, ...`` are determined (their state no longer depends on the
-        initial state, except through relays the recording never switches).
-    exact : bool
-        ``True`` when the input reached ``u_min`` or ``u_max`` by ``index`` (a saturation: the
-        state is exact); ``False`` when only the recording's own extremes were visited.
-
-    """
-    uu = np.asarray(u, dtype=float)
-    if uu.ndim != 1 or uu.size == 0:
-        raise ValueError("u: expected a non-empty 1-D array of input samples (V)")
-    sat = np.nonzero((uu <= u_min) | (uu >= u_max))[0]
-    k_sat = int(sat[0]) if sat.size else uu.size
-    k_own = max(int(np.argmin(uu)), int(np.argmax(uu)))  # first visits of both own extremes
-    if k_sat <= k_own:
-        return k_sat, True
-    return k_own, False
-
-
-def initial_state_for(
-    model_or_range: PreisachModel | tuple[float, float], policy: InitialState
-) -> State:
-    """Return the state a policy simulates from (``"burn-in"`` starts at negative saturation)."""
-    if isinstance(model_or_range, PreisachModel):
-        lo, hi = model_or_range.u_min, model_or_range.u_max
-    else:
-        lo, hi = (float(v) for v in model_or_range)
-    if isinstance(policy, State):
-        return policy
-    if policy in ("burn-in", "negative"):
-        return State.negative_saturation(lo, hi)
-    if policy == "positive":
-        return State.positive_saturation(lo, hi)
-    if policy == "anhysteretic":
-        l0 = 0.0 if lo <= 0.0 <= hi else 0.5 * (lo + hi)
-        return State.neutral(lo, hi, l0)
-    raise ValueError(f"initial_state: expected one of {_POLICIES} or a State, got {policy!r}")
-
-
-def check_policy(policy: InitialState) -> str:
-    """Name of an initial-state policy (``"state"`` for an explicit State); raises on bad input."""
-    if isinstance(policy, State):
-        return "state"
-    if policy not in _POLICIES:
-        raise ValueError(f"initial_state: expected one of {_POLICIES} or a State, got {policy!r}")
-    return str(policy)
 
 
 # ------------------------------------------------------------------------------------------
