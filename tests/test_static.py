@@ -8,7 +8,7 @@ import sys
 import pytest
 from _paths import ROOT
 
-PATHS = ["python", "tests", "scripts", "examples", "benchmarks"]
+PATHS = ["python", "tests", "scripts", "examples", "benchmarks", "notebooks"]
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
