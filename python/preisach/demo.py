@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from ._io import save_figure, write_json, write_text
+
 __all__ = ["add_parser", "run_demo"]
 
 _STAGES = 5
@@ -66,7 +68,7 @@ class _Progress:
 
 
 def _save(fig: Any, path: Path, dpi: int = 100) -> str:
-    fig.savefig(path, dpi=dpi)
+    save_figure(fig, path, dpi=dpi)
     return path.name
 
 
@@ -438,8 +440,8 @@ def _run_demo(args: argparse.Namespace) -> int:
         + ").",
         "",
     ]
-    (out / "report.md").write_text("\n".join(md), encoding="utf-8")
-    (out / "report.json").write_text(json.dumps(_finite(key), indent=2) + "\n", encoding="utf-8")
+    write_text(out / "report.md", "\n".join(md), what="report")
+    write_json(out / "report.json", _finite(key), indent=2, what="report")
     print(
         f"done in {total:.1f} s; wrote {out / 'report.md'} (figures, recordings and models "
         f"in {out})"

@@ -21,14 +21,13 @@ import zipfile
 import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from .recording import _atomic_write
+from ._io import atomic_write
 from .surface import TABLE_3_1, SqrtSurface
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -671,7 +670,7 @@ class PreisachModel:
             "y_min": np.array(self.y_min),
             "info": np.array(info),
         }
-        _atomic_write(Path(os.fspath(path)), lambda f: np.savez(f, **arrays), binary=True)
+        atomic_write(path, lambda f: np.savez(f, **arrays), binary=True, what="model")
 
     @classmethod
     def load(cls, path: PathLike) -> PreisachModel:

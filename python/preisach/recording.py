@@ -62,15 +62,16 @@ import os
 import re
 import warnings
 from array import array
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any, Union, cast
+from typing import Any, Union, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._io import atomic_write
 from .errors import PreisachWarning, RecordingFormatError
 
 __all__ = ["Recording", "RecordingWriter", "REQUIRED_COLUMNS"]
@@ -184,27 +185,6 @@ def _first_non_increasing(t: NDArray[np.float64]) -> int | None:
         return None
     bad = np.flatnonzero(np.diff(t) <= 0)
     return int(bad[0]) + 1 if bad.size else None
-
-
-def _atomic_write(path: Path, write: Callable[[IO[Any]], object], binary: bool) -> None:
-    """Write through a temporary file in the same directory, then rename over ``path``."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        if binary:
-            f: IO[Any] = open(tmp, "wb")
-        else:
-            f = open(tmp, "w", encoding="utf-8", newline="")
-        with f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 # --------------------------------------------------------------------------------------
@@ -450,11 +430,11 @@ class Recording:
                 + "\n"
                 + _rows_text(self._block())
             )
-            _atomic_write(p, lambda f: f.write(text), binary=False)
+            atomic_write(p, lambda f: f.write(text), what="recording")
         elif suffix == ".npz":
             arrays: dict[str, Any] = dict(self._items())
             arrays[_NPZ_METADATA] = np.array(json.dumps(metadata))
-            _atomic_write(p, lambda f: np.savez(f, **arrays), binary=True)
+            atomic_write(p, lambda f: np.savez(f, **arrays), binary=True, what="recording")
         else:
             raise ValueError(
                 f"{os.fspath(path)}: unsupported recording suffix {p.suffix!r}; "

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .. import _core
+from .._io import atomic_write
 from ..model import PreisachModel, SimulationResult, State
 from .blocks import Block, OutputFeedback, RateDependentWidth, block_from_dict
 
@@ -202,16 +203,15 @@ class AugmentedModel:
             },
             "blocks": [b.to_dict() for b in self.blocks],
         }
-        with open(path, "wb") as f:
-            np.savez(
-                f,
-                format=np.array(_FORMAT),
-                version=np.array(_FORMAT_VERSION),
-                levels=self.base.levels,
-                everett=self.base.everett_values,
-                y_min=np.array(self.base.y_min),
-                info=np.array(json.dumps(info)),
-            )
+        arrays: dict[str, Any] = {
+            "format": np.array(_FORMAT),
+            "version": np.array(_FORMAT_VERSION),
+            "levels": self.base.levels,
+            "everett": self.base.everett_values,
+            "y_min": np.array(self.base.y_min),
+            "info": np.array(json.dumps(info)),
+        }
+        atomic_write(path, lambda f: np.savez(f, **arrays), binary=True, what="model")
 
     @classmethod
     def load(cls, path: PathLike) -> AugmentedModel:

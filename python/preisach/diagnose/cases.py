@@ -85,6 +85,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
+from .._io import write_json
 from ..model import PreisachModel, State
 from ..noise import uniform_filtered_noise
 from ..recording import Recording
@@ -359,8 +360,8 @@ class Case:
             nm = str(r.metadata.get("experiment", f"rec{len(names)}"))
             r.save(d / f"{nm}.npz")
             names.append(nm)
-        (d / "truth.json").write_text(
-            json.dumps({"kind": self.kind, "recordings": names, **self.truth}, indent=2) + "\n"
+        write_json(
+            d / "truth.json", {"kind": self.kind, "recordings": names, **self.truth}, indent=2
         )
 
     @classmethod

@@ -9,6 +9,8 @@ import argparse
 import os
 from typing import TYPE_CHECKING
 
+from .._io import save_figure
+
 if TYPE_CHECKING:  # pragma: no cover
     from ..model import PreisachModel
 
@@ -55,7 +57,7 @@ def _run(args: argparse.Namespace) -> int:
 
         matplotlib.use("Agg")
         fig = report.plot()
-        fig.savefig(args.plot, dpi=110)
+        save_figure(fig, args.plot, dpi=110)
     if args.save_model:
         report.model.save(args.save_model)
     if not args.quiet:

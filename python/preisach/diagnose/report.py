@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal
 
+from .._io import write_text
 from .augmented import AugmentedModel
 from .locate import ResidualAnalysis, motion_features
 
@@ -124,8 +125,7 @@ class DiagnosisReport:
         """JSON text of :meth:`to_dict`; also written to ``path`` when given."""
         text = json.dumps(_jsonable(self.to_dict()), indent=indent)
         if path is not None:
-            with open(path, "w", encoding="utf-8") as f:
-                f.write(text + "\n")
+            write_text(path, text + "\n", what="JSON report")
         return text
 
     def details(self) -> dict[str, Any]:

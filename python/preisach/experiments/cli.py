@@ -7,13 +7,13 @@ write a figure.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .._io import save_figure, write_json
 from ..model import BUILTIN_MODELS, PreisachModel
 from ..neutral import check_mp, neutral_locus
 from ..noise import NoiseSpec
@@ -115,12 +115,12 @@ def _clean(o: Any) -> Any:
 
 
 def _write_json(path: str, data: dict[str, Any]) -> None:
-    Path(path).write_text(json.dumps(_clean(data), indent=1, allow_nan=False) + "\n")
+    write_json(path, _clean(data), indent=1, allow_nan=False)
 
 
 def _save_figure(fig: Any, path: str | None) -> None:
     if path:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path, dpi=120)
 
 
 def _run_sweep(args: argparse.Namespace) -> int:

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._io import write_text
 from ..model import PreisachModel, State
 from ..neutral import neutral_locus
 from .closed_loop import ClosedLoopResult, closed_loop_trials
@@ -171,8 +172,7 @@ class SweepResult:
             w.writerow({k: (repr(float(v)) if isinstance(v, float) else v) for k, v in r.items()})
         text = buf.getvalue()
         if path is not None:
-            with open(path, "w", encoding="utf-8", newline="") as f:
-                f.write(text)
+            write_text(path, text, what="CSV table")
         return text
 
     def values(

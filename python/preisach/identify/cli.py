@@ -15,12 +15,12 @@ and exit status 1.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import warnings
 from pathlib import Path
 from typing import Any
 
+from .._io import save_figure, write_json
 from .identifiers import MAX_FOD_LEVELS
 
 __all__ = ["add_parser"]
@@ -44,13 +44,13 @@ def _load_recordings(paths: list[str]) -> list[Any]:
 
 def _write_json(path: str | None, obj: dict[str, Any]) -> None:
     if path:
-        Path(path).write_text(json.dumps(obj, indent=2, default=float) + "\n")
+        write_json(path, obj, indent=2, default=float)
         print(f"wrote {path}")
 
 
 def _save_figure(path: str | None, fig: Any) -> None:
     if path:
-        fig.savefig(path, dpi=110)
+        save_figure(fig, path, dpi=110)
         print(f"wrote {path}")
 
 

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from .. import daq
+from .._io import write_json
 from ..errors import TrialInterrupted
 from .plan import _approach, _load_model, check_trial, step_waveform
 from .schema import PlannedStep, TrialPlan
@@ -353,9 +354,7 @@ def run_trial_file(
         }
         if safety_ramp is not None:
             doc["safety_ramp"] = safety_ramp
-        tmp = summary.with_name(summary.name + ".tmp")
-        tmp.write_text(json.dumps(doc, indent=2) + "\n")
-        os.replace(tmp, summary)
+        write_json(summary, doc, indent=2, what="trial summary")
     outcome = TrialOutcome(plan, dev.description, end_status, outcomes, str(summary))
     if interrupted is not None:
         raise TrialInterrupted(str(interrupted), outcome)
