@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from preisach.errors import PreisachWarning, RecordingFormatError
-from preisach.recording import Recording, RecordingWriter
+from preisach.recording import Recording, RecordingWriter, as_recordings, recording_labels
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -644,3 +644,49 @@ def test_killed_writer_mid_row_simulated(tmp_path: Path) -> None:
         rec = Recording.load(path)
     np.testing.assert_array_equal(rec.y, [4.0, 5.0, 6.0])
     assert rec.metadata == {"sample_time": 0.5}
+
+
+# ----------------------------------------------------------------------------- as input
+
+
+def test_as_recordings_accepts_every_kind_and_labels_by_one_rule(tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    t = np.arange(5) * 1e-3
+    named = Recording.from_arrays(t, t, 2 * t, experiment="wipe")
+    by_name = Recording.from_arrays(t, t, t, metadata={"name": "n1", "experiment": ""})
+    path = tmp_path / "from_file.csv"
+    Recording.from_arrays(t, -t, t).save(path)
+    duck = SimpleNamespace(t=t, u=t, y=3 * t, metadata={"experiment": "duck", "flag": True})
+    recs = as_recordings([named, str(path), duck, by_name, Path(path)])
+    assert all(isinstance(r, Recording) for r in recs)
+    assert recs[0] is named  # passed through, not copied
+    np.testing.assert_array_equal(recs[1].u, -t)
+    np.testing.assert_array_equal(recs[2].y, 3 * t)
+    assert recs[2].metadata == {"experiment": "duck"}  # the bool is not recording metadata
+    assert recording_labels(recs) == ["wipe", "from_file #1", "duck", "n1", "from_file #2"]
+    assert as_recordings(named) == [named]
+    assert [len(r) for r in as_recordings(path)] == [5]
+    assert as_recordings(r for r in (named,)) == [named]
+    assert recording_labels([SimpleNamespace(t=t, u=t, y=t)] * 2) == ["recording 0", "recording 1"]
+    assert recording_labels(recs[:2], ["a", "a"]) == ["a #1", "a #2"]
+
+
+def test_as_recordings_errors_name_the_argument(tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    with pytest.raises(ValueError, match="recordings: need at least one"):
+        as_recordings([])
+    with pytest.raises(TypeError, match=r"recordings\[1\]: expected a Recording"):
+        as_recordings([Recording.from_arrays(u=[0.0, 1.0], y=[0.0, 1.0], sample_time=1.0), 3])
+    with pytest.raises(TypeError, match="identification: expected"):
+        as_recordings(np.zeros((3, 3)), argument="identification")
+    with pytest.raises(ValueError, match=r"recordings\[0\]: t must be strictly increasing"):
+        as_recordings([SimpleNamespace(t=[0.0, 0.0], u=[0.0, 1.0], y=[0.0, 1.0])])
+    with pytest.raises(FileNotFoundError):
+        as_recordings(tmp_path / "missing.csv")
+    write(tmp_path / "bad.csv", "t,u\n0,1\n")
+    with pytest.raises(RecordingFormatError, match="bad.csv"):
+        as_recordings([tmp_path / "bad.csv"])
+    with pytest.raises(ValueError, match="names: got 1 labels for 2"):
+        recording_labels([object(), object()], ["a"], argument="names")

@@ -40,7 +40,7 @@ if TYPE_CHECKING:  # the static view of the lazy names below
         state_from_dict,
         state_to_dict,
     )
-    from .recording import Recording, RecordingWriter
+    from .recording import Recording, RecordingWriter, as_recordings
     from .surface import TABLE_3_1, SqrtSurface
 
 #: Public name -> module (relative to this package) it is loaded from on first access.
@@ -58,6 +58,7 @@ _LAZY: dict[str, str] = {
     "state_to_dict": ".model",
     "Recording": ".recording",
     "RecordingWriter": ".recording",
+    "as_recordings": ".recording",
     "SqrtSurface": ".surface",
     "TABLE_3_1": ".surface",
 }
@@ -79,6 +80,7 @@ __all__ = [
     "SqrtSurface",
     "State",
     "TABLE_3_1",
+    "as_recordings",
     "state_from_dict",
     "state_to_dict",
     "__version__",

@@ -30,7 +30,7 @@ Diagnosis (:mod:`preisach.diagnose`)
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -44,6 +44,7 @@ from .identify.plots import (
     plot_weights,
 )
 from .identify.plots import plot_report as plot_identification
+from .recording import RecordingsInput, as_recordings
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -473,18 +474,9 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
     return report.plot(fig=fig)
 
 
-def _recordings(recordings: Any) -> list[Any]:
-    if hasattr(recordings, "u"):
-        return [recordings]
-    recs = list(recordings) if isinstance(recordings, Iterable) else []
-    if not recs:
-        raise ValueError("recordings: need at least one recording (objects with t, u, y)")
-    return recs
-
-
 def plot_residual_map(
     model: PreisachModel,
-    recordings: Any,
+    recordings: RecordingsInput,
     *,
     delay: int = 0,
     initial_state: Any = "burn-in",
@@ -507,8 +499,8 @@ def plot_residual_map(
     ----------
     model : PreisachModel
         The model.
-    recordings : Recording or sequence of Recording
-        Objects with ``t``, ``u``, ``y`` (s, V, V).
+    recordings : Recording, path, object with t/u/y, or a sequence of them
+        The recordings (s, V, V); see :func:`preisach.recording.as_recordings`.
     delay : int
         Output delay in samples (``y[k + delay]`` answers ``u[k]``).
     initial_state : str or State
@@ -532,7 +524,7 @@ def plot_residual_map(
     if nu < 1 or nr < 1:
         raise ValueError(f"bins: need positive numbers of bins, got {bins!r}")
     us, rates, res, ys = [], [], [], []
-    for rec in _recordings(recordings):
+    for rec in as_recordings(recordings):
         p = predict(model, rec, initial_state=initial_state, delay=delay)
         sl = slice(p.first, None)
         rate = np.gradient(p.u, p.t) if p.u.size > 1 else np.zeros_like(p.u)

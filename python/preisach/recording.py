@@ -66,7 +66,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Union, cast
+from typing import Any, Protocol, Union, cast, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -74,7 +74,18 @@ from numpy.typing import ArrayLike, NDArray
 from ._io import atomic_write
 from .errors import PreisachWarning, RecordingFormatError
 
-__all__ = ["Recording", "RecordingWriter", "REQUIRED_COLUMNS"]
+__all__ = [
+    "LABEL_KEYS",
+    "REQUIRED_COLUMNS",
+    "Recording",
+    "RecordingLike",
+    "RecordingWriter",
+    "RecordingsInput",
+    "SampledData",
+    "as_recordings",
+    "recording_label",
+    "recording_labels",
+]
 
 #: Columns every recording has: time (s), input (V), output (V).
 REQUIRED_COLUMNS: tuple[str, str, str] = ("t", "u", "y")
@@ -1056,3 +1067,190 @@ class RecordingWriter:
             f"RecordingWriter({str(self._path)!r}, columns={list(self._columns)}, "
             f"n_rows={self._n_rows}, {state})"
         )
+
+
+# --------------------------------------------------------------------------------------
+# recordings as input: the one place that turns what a caller passes into Recordings
+# --------------------------------------------------------------------------------------
+
+
+@runtime_checkable
+class SampledData(Protocol):
+    """Anything with sampled ``t`` (s), ``u`` (V) and ``y`` (V), e.g. a :class:`Recording`."""
+
+    @property
+    def t(self) -> Any: ...  # noqa: D102
+
+    @property
+    def u(self) -> Any: ...  # noqa: D102
+
+    @property
+    def y(self) -> Any: ...  # noqa: D102
+
+
+#: One recording as a caller may give it: a :class:`Recording`, a file path (``.csv`` or
+#: ``.npz``) or any object with ``t``, ``u`` and ``y``.
+RecordingLike = Union[Recording, str, "os.PathLike[str]", SampledData]
+#: One recording or a sequence of them (what every ``recordings`` argument accepts).
+RecordingsInput = Union[RecordingLike, Sequence[RecordingLike]]
+
+#: Metadata keys giving a recording's label, in order of precedence.
+LABEL_KEYS: tuple[str, str] = ("experiment", "name")
+
+
+def _has_tuy(obj: object) -> bool:
+    return all(hasattr(obj, a) for a in REQUIRED_COLUMNS) and not isinstance(obj, np.ndarray)
+
+
+def _one_recording(obj: object, where: str) -> Recording:
+    if isinstance(obj, Recording):
+        return obj
+    if isinstance(obj, (str, os.PathLike)):
+        rec = Recording.load(obj)
+        if recording_label(rec) is None:
+            rec.metadata["experiment"] = Path(os.fspath(obj)).stem
+        return rec
+    if _has_tuy(obj):
+        meta = getattr(obj, "metadata", None)
+        kept = {
+            k: v
+            for k, v in (meta.items() if isinstance(meta, Mapping) else ())
+            if _valid_name(k)
+            and isinstance(v, (str, int, float, np.integer, np.floating))
+            and not isinstance(v, (bool, np.bool_))
+        }
+        try:
+            return Recording(
+                t=cast(Any, getattr(obj, "t")),  # noqa: B009
+                u=cast(Any, getattr(obj, "u")),  # noqa: B009
+                y=cast(Any, getattr(obj, "y")),  # noqa: B009
+                metadata=kept,
+            )
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from exc
+    raise TypeError(
+        f"{where}: expected a Recording, a file path or an object with t, u, y; "
+        f"got {type(obj).__name__}"
+    )
+
+
+def as_recordings(recordings: object, *, argument: str = "recordings") -> list[Recording]:
+    """Turn what a caller passes as recordings into a list of :class:`Recording`.
+
+    Every public function taking ``recordings`` goes through this one function, so each
+    accepts the same things: a :class:`Recording`, a path to a ``.csv`` or ``.npz`` recording
+    file, any object with sampled ``t`` (s), ``u`` (V) and ``y`` (V) attributes (copied into a
+    :class:`Recording`, keeping its ``str``/``int``/``float`` metadata), or a sequence
+    (list, tuple, generator) of any of these.  ``Recording`` objects are passed through, not
+    copied.  A file whose metadata has no label (see :func:`recording_label`) gets its file
+    stem as ``experiment``.
+
+    Parameters
+    ----------
+    recordings : Recording, path, object with t/u/y, or a sequence of them
+        What to convert.
+    argument : str
+        Argument name used in error messages.
+
+    Returns
+    -------
+    list of Recording
+        At least one recording, in the order given.
+
+    Raises
+    ------
+    TypeError
+        If an item is none of the accepted kinds.
+    ValueError
+        If no recording is given or an item's data are invalid (see :class:`Recording`).
+    OSError
+        If a file cannot be opened (e.g. :class:`FileNotFoundError`).
+    RecordingFormatError
+        If a file is not a valid recording.
+
+    """
+    if isinstance(recordings, (Recording, str, os.PathLike)) or _has_tuy(recordings):
+        return [_one_recording(recordings, argument)]
+    if isinstance(recordings, (Mapping, np.ndarray)):
+        raise TypeError(
+            f"{argument}: expected a Recording, a file path, an object with t, u, y or a "
+            f"sequence of them; got {type(recordings).__name__}"
+        )
+    try:
+        items = list(cast(Any, recordings))
+    except TypeError:
+        raise TypeError(
+            f"{argument}: expected a Recording, a file path, an object with t, u, y or a "
+            f"sequence of them; got {type(recordings).__name__}"
+        ) from None
+    if not items:
+        raise ValueError(f"{argument}: need at least one recording")
+    return [_one_recording(r, f"{argument}[{k}]") for k, r in enumerate(items)]
+
+
+def recording_label(recording: object) -> str | None:
+    """Return a recording's own label: its ``experiment`` metadata, else its ``name``.
+
+    Empty values do not count; ``None`` when neither key gives a label.
+    """
+    meta = getattr(recording, "metadata", None)
+    if not isinstance(meta, Mapping):
+        return None
+    for key in LABEL_KEYS:
+        value = meta.get(key)
+        if value is not None and str(value):
+            return str(value)
+    return None
+
+
+def recording_labels(
+    recordings: Sequence[object],
+    labels: Sequence[str] | None = None,
+    *,
+    argument: str = "labels",
+) -> list[str]:
+    """Label each recording by the one rule every report, table and figure uses.
+
+    The rule: explicit ``labels`` if given (one per recording); otherwise each recording's
+    :func:`recording_label` (``experiment`` metadata, else ``name``; a file loaded by
+    :func:`as_recordings` carries its stem), else ``"recording k"`` (``k`` its position from
+    0).  A label shared by several recordings gets `` #1``, `` #2``... in order, so labels are
+    unique.
+
+    Parameters
+    ----------
+    recordings : sequence
+        The recordings (see :func:`as_recordings`).
+    labels : sequence of str, optional
+        Explicit labels, one per recording, used as given (duplicates numbered too).
+    argument : str
+        Name of the ``labels`` argument in error messages.
+
+    Returns
+    -------
+    list of str
+        One unique label per recording.
+
+    Raises
+    ------
+    ValueError
+        If ``labels`` does not have one entry per recording.
+
+    """
+    if labels is not None:
+        names = [str(n) for n in labels]
+        if len(names) != len(recordings):
+            raise ValueError(
+                f"{argument}: got {len(names)} labels for {len(recordings)} recordings"
+            )
+    else:
+        names = [recording_label(r) or f"recording {k}" for k, r in enumerate(recordings)]
+    seen: dict[str, int] = {}
+    out = []
+    for n in names:
+        if names.count(n) > 1:
+            seen[n] = seen.get(n, 0) + 1
+            out.append(f"{n} #{seen[n]}")
+        else:
+            out.append(n)
+    return out

@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 from .errors import PreisachWarning
 from .initial_state import InitialState, burn_in_end, check_policy, initial_state_for
 from .model import PreisachModel
+from .recording import RecordingsInput, SampledData, as_recordings, recording_labels
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -63,15 +64,9 @@ __all__ = [
 ]
 
 
-def _name_of(rec: Any, k: int) -> str:
-    meta = getattr(rec, "metadata", None) or {}
-    for key in ("experiment", "name"):
-        if key in meta and str(meta[key]):
-            return str(meta[key])
-    return f"recording {k}"
-
-
-def _arrays(rec: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def _arrays(
+    rec: SampledData,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     if not all(hasattr(rec, a) for a in ("t", "u", "y")):
         raise TypeError(f"expected a recording with attributes t, u, y, got {type(rec).__name__}")
     t, u, y = (np.asarray(getattr(rec, a), dtype=float) for a in ("t", "u", "y"))
@@ -144,7 +139,7 @@ class Prediction:
 
 def predict(
     model: PreisachModel,
-    recording: Any,
+    recording: SampledData,
     *,
     initial_state: InitialState = "burn-in",
     delay: int = 0,
@@ -307,7 +302,7 @@ class VerificationTable:
 
 def verify(
     model: PreisachModel,
-    recordings: Any,
+    recordings: RecordingsInput,
     *,
     initial_state: InitialState = "burn-in",
     delay: int = 0,
@@ -326,8 +321,8 @@ def verify(
     ----------
     model : PreisachModel
         The model to verify.
-    recordings : Recording or sequence of Recording
-        Objects with ``t``, ``u``, ``y`` (s, V, V).
+    recordings : Recording, path, object with t/u/y, or a sequence of them
+        The recordings (s, V, V); see :func:`preisach.recording.as_recordings`.
     initial_state : {"burn-in", "negative", "positive", "anhysteretic"} or State
         See the module docstring.
     delay : int
@@ -335,7 +330,9 @@ def verify(
     output_range : float, optional
         Range (V) for the percentages; default each recording's measured output range.
     names : sequence of str, optional
-        Experiment names; default the recordings' ``experiment`` metadata.
+        Experiment names; default the label rule of
+        :func:`preisach.recording.recording_labels` (``experiment`` metadata, else ``name``,
+        else the file stem or ``recording k``; repeated labels numbered ``#1``, ``#2``).
     warn_out_of_range : bool
         Warn about recordings with input samples outside the model's range (default); the
         counts are in the rows either way.
@@ -351,12 +348,8 @@ def verify(
         For each recording with input samples outside ``[model.u_min, model.u_max]``.
 
     """
-    recs = [recordings] if hasattr(recordings, "u") else list(recordings)
-    if not recs:
-        raise ValueError("recordings: need at least one recording")
-    nm = list(names) if names is not None else [_name_of(r, k) for k, r in enumerate(recs)]
-    if len(nm) != len(recs):
-        raise ValueError(f"names: got {len(nm)} names for {len(recs)} recordings")
+    recs = as_recordings(recordings)
+    nm = recording_labels(recs, names, argument="names")
     rows: list[VerificationRow] = []
     preds: list[Prediction] = []
     for name, rec in zip(nm, recs):
@@ -589,7 +582,7 @@ class WipingOutResult:
 
 
 def wiping_out_metric(
-    recording: Any,
+    recording: SampledData,
     *,
     tolerance: float = 5.0,
     reversal_tol: float | None = None,
@@ -781,7 +774,7 @@ class _Loop:
 
 
 def congruency_metric(
-    recording: Any,
+    recording: SampledData,
     *,
     tolerance: float = 5.0,
     reversal_tol: float | None = None,
