@@ -767,6 +767,12 @@ class PreisachModel:
 
     __hash__ = None  # type: ignore[assignment]
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: levels, input and output range, a major-loop thumbnail."""
+        from ._display import model_html
+
+        return model_html(self)
+
     def __repr__(self) -> str:
         nm = f"{self.name!r}, " if self.name else ""
         return (

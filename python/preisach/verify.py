@@ -286,6 +286,12 @@ class VerificationTable:
             )
         return "\n".join(lines)
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: the error table, doubtful rows highlighted."""
+        from ._display import verification_html
+
+        return verification_html(self)
+
     def __str__(self) -> str:
         return self.table()
 

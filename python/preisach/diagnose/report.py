@@ -168,6 +168,12 @@ class DiagnosisReport:
         lines += ["  " + s for s in self.before.summary()]
         return "\n".join(lines)
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: verdict, effects with uncertainties, held-out RMSE, the figure."""
+        from .._display import diagnosis_html
+
+        return diagnosis_html(self)
+
     def __str__(self) -> str:
         return self.summary()
 

@@ -298,6 +298,12 @@ class SweepResult:
             )
         return "\n".join(lines)
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: mean +/- std per state, Table 5.1, the thesis's claims."""
+        from .._display import sweep_html
+
+        return sweep_html(self)
+
     def to_dict(self) -> dict[str, Any]:
         """Everything but the traces, JSON-serialisable."""
         d: dict[str, Any] = {

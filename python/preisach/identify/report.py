@@ -319,6 +319,12 @@ class IdentificationReport:
             lines += [f"    - {w}" for w in self.warnings]
         return "\n".join(lines)
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: model, data, residuals with units, warnings highlighted."""
+        from .._display import identification_html
+
+        return identification_html(self)
+
     def __str__(self) -> str:
         return self.summary()
 
