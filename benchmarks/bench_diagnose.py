@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 
 from preisach.diagnose import diagnose
-from preisach.diagnose.cases import make_case
+from preisach.studies.diagnosis_cases import make_case
 
 
 def main() -> None:

@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 from preisach import diagnose
-from preisach.diagnose.cases import make_case
+from preisach.studies.diagnosis_cases import make_case
 from preisach.identify import identify_fod
 from preisach.recording import Recording
 

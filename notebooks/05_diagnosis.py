@@ -26,7 +26,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 from preisach import diagnose, load_model, plotting
-from preisach.diagnose.cases import make_case
+from preisach.studies.diagnosis_cases import make_case
 from preisach.verify import verify
 
 # %matplotlib inline
@@ -132,7 +132,7 @@ print(report.to_json()[:400], "...")
 # the held-out error drops from the given model's towards the noise.)
 
 # %%
-from preisach.diagnose.cases import physical_checks
+from preisach.studies.diagnosis_cases import physical_checks
 
 for kind in ("none", "creep"):
     c = make_case(kind, seed=7, scale=0.3, effect_size=3.5, generator="own")

@@ -1,8 +1,8 @@
 """Randomised proof of diagnosis on concealed effects: confusion matrix and false-alarm rate.
 
 Every case is a virtual device (the SS15 1 Hz model) with ONE small effect - or none - measured
-with white noise and 14-bit quantisation (see :mod:`preisach.diagnose.cases`): ``--generator
-own`` (default) is the different-form proof (truths whose functional forms and shape
+with white noise and 14-bit quantisation (see :mod:`preisach.studies.diagnosis_cases`):
+``--generator own`` (default) is the different-form proof (truths whose functional forms and shape
 parameters differ from the candidates'), ``--generator rig`` the same-form check (the virtual
 rig's blocks, largely the candidates' own forms).  Each case has an FOD
 identification sweep plus wiping-out, CML, multi-frequency sine, step-and-hold and filtered
@@ -36,7 +36,7 @@ from typing import Any
 def run_case(job: dict[str, Any]) -> dict[str, Any]:
     """One randomised case: effect size and noise level drawn from the case's seed."""
     import numpy as np
-    from preisach.diagnose.cases import run_case as run
+    from preisach.studies.diagnosis_cases import run_case as run
 
     rng = np.random.default_rng(job["seed"] + 100_003)
     size = float(rng.uniform(job["size_min"], job["size_max"]))
@@ -70,7 +70,7 @@ def _seen(ratio: float) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--per-kind", type=int, default=10, help="cases per kind (default 10)")
-    from preisach.diagnose.cases import EFFECT_KINDS
+    from preisach.studies.diagnosis_cases import EFFECT_KINDS
 
     ap.add_argument("--kinds", default=",".join(("none", *EFFECT_KINDS)))
     ap.add_argument(

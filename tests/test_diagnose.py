@@ -14,14 +14,14 @@ from preisach.diagnose import (
     DiagnosisReport,
     FirstOrderInputLag,
     FractionalDelay,
-    StructuralMode,
+    SecondOrderMode,
     analyse_residuals,
     diagnose,
     load_model,
 )
-from preisach.diagnose.cases import make_case
 from preisach.diagnose.cli import add_parser
-from preisach.diagnose.engine import prepare_recordings
+from preisach.diagnose.data import prepare_recordings
+from preisach.studies.diagnosis_cases import make_case
 
 
 @pytest.fixture(scope="module")
@@ -124,7 +124,7 @@ def test_augmented_model_round_trip_and_simulation(delay_report, delay_case, tmp
 def test_augmented_model_is_the_chain():
     base = PreisachModel.builtin("ss15-1hz", levels=41)
     lag = FirstOrderInputLag(1e-3, tau=2e-3)
-    mode = StructuralMode(1e-3, f_n=40.0, zeta=0.05, participation=0.3)
+    mode = SecondOrderMode(1e-3, f_n=40.0, zeta=0.05, participation=0.3)
     aug = AugmentedModel(base, [mode, lag])
     u = 80 * np.sin(np.linspace(0, 20, 4000))
     s0 = base.negative_saturation()
@@ -313,7 +313,8 @@ def test_heldout_outputs_do_not_enter_the_feedback_fit():
     not drive it, though the relays' memory carries their input into later training blocks.
     """
     from preisach.diagnose.candidates import NonCongruenceCandidate
-    from preisach.diagnose.engine import Chain, Context, make_folds
+    from preisach.diagnose.context import Chain, Context
+    from preisach.diagnose.scoring import make_folds
 
     case = make_case("non_congruence", seed=5, scale=0.2, effect_size=3.5)
     model = case.identify()
@@ -342,7 +343,7 @@ def test_heldout_outputs_do_not_enter_the_feedback_fit():
 
 def test_own_generator_shapes_are_not_the_candidates():
     """The own truths' rate smoothing and feedback centre are random, not the candidates'."""
-    from preisach.diagnose.cases import _truth_params
+    from preisach.studies.diagnosis_cases import _truth_params
 
     m = PreisachModel.builtin("ss15-1hz", levels=41)
     lo, span = m.y_min, m.y_max - m.y_min
@@ -365,7 +366,7 @@ def test_candidate_blocks_are_not_shared_between_threads():
     from concurrent.futures import ThreadPoolExecutor
 
     from preisach.diagnose.candidates import CreepCandidate
-    from preisach.diagnose.engine import Context
+    from preisach.diagnose.context import Context
 
     m, recs = _recs_with("none")
     ctx = Context(m, prepare_recordings(m, recs))

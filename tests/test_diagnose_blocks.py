@@ -10,27 +10,27 @@ import pytest
 from preisach import PreisachModel
 from preisach.blocks import make_block
 from preisach.diagnose import (
-    BLOCK_TYPES,
-    Creep,
+    EFFECT_TYPES,
     FirstOrderInputLag,
     FractionalDelay,
     GainOffset,
     LevelDependentGain,
     OutputFeedback,
+    PronyCreep,
     RateDependentPlay,
     RateDependentWidth,
+    SecondOrderMode,
     SensorDrift,
-    StructuralMode,
 )
-from preisach.diagnose.blocks import block_from_dict
+from preisach.diagnose.effects import effect_from_dict
 
 DT = 1e-3
 
 
 def _examples():
     return [
-        StructuralMode(DT, f_n=37.62, zeta=0.02, participation=0.5),
-        Creep(DT, taus=[0.02, 0.2, 2.0], weights=[0.01, 0.02, 0.005], gain=1.01),
+        SecondOrderMode(DT, f_n=37.62, zeta=0.02, participation=0.5),
+        PronyCreep(DT, taus=[0.02, 0.2, 2.0], weights=[0.01, 0.02, 0.005], gain=1.01),
         FractionalDelay(DT, tau=2.3e-3),
         FirstOrderInputLag(DT, tau=1.5e-3),
         RateDependentPlay(DT, w_ref=0.5, exponent=0.5, v_ref=200.0, tau_v=5e-3),
@@ -67,10 +67,10 @@ def test_reset_is_a_steady_state(blk):
 @pytest.mark.parametrize("blk", _examples(), ids=lambda b: type(b).__name__)
 def test_dict_round_trip_and_units(blk):
     d = blk.to_dict()
-    back = block_from_dict(d)
+    back = effect_from_dict(d)
     assert type(back) is type(blk) and back.params == blk.params and back.dt == blk.dt
     assert set(blk.units) == set(blk.params)
-    assert type(blk).__name__ in BLOCK_TYPES
+    assert type(blk).__name__ in EFFECT_TYPES
     assert blk.kind in blk.describe()
 
 
@@ -79,13 +79,13 @@ def test_structural_mode_equals_the_rigs_block():
     for f, z in ((37.62, 0.02), (120.0, 0.3), (5.0, 1.0), (20.0, 2.0)):
         rig = make_block({"kind": "structural_mode", "frequency": f, "damping": z}, DT)
         rig.reset(0.0)
-        mine = StructuralMode(DT, f_n=f, zeta=z, participation=1.0)
+        mine = SecondOrderMode(DT, f_n=f, zeta=z, participation=1.0)
         mine.reset(0.0)
         np.testing.assert_allclose(mine.run(x), rig.run(x), rtol=0, atol=1e-9)
 
 
 def test_structural_mode_rings_at_its_frequency():
-    m = StructuralMode(DT, f_n=40.0, zeta=0.01, participation=1.0)
+    m = SecondOrderMode(DT, f_n=40.0, zeta=0.01, participation=1.0)
     m.reset(0.0)
     y = m.run(np.ones(4000)) - 1.0
     zc = np.flatnonzero(np.diff(np.sign(y[100:])) != 0)
@@ -94,7 +94,7 @@ def test_structural_mode_rings_at_its_frequency():
 
 
 def test_creep_step_response_is_the_sum_of_lags():
-    c = Creep(DT, taus=[0.02, 0.2, 2.0], weights=[0.01, 0.02, 0.03], gain=1.05)
+    c = PronyCreep(DT, taus=[0.02, 0.2, 2.0], weights=[0.01, 0.02, 0.03], gain=1.05)
     c.reset(0.0)
     y = c.run(np.ones(5000))
     t = (np.arange(5000) + 1) * DT
@@ -161,7 +161,7 @@ def test_rate_dependent_width_scales_the_hysteretic_deviation():
 
 def test_parameter_errors_name_block_and_parameter():
     with pytest.raises(ValueError, match="structural_mode: parameter f_n"):
-        StructuralMode(DT, f_n=-1.0, zeta=0.1, participation=1.0)
+        SecondOrderMode(DT, f_n=-1.0, zeta=0.1, participation=1.0)
     with pytest.raises(ValueError, match="delay: parameter tau"):
         FractionalDelay(DT, tau=-1e-3)
     with pytest.raises(TypeError, match="unknown parameter"):
@@ -169,11 +169,11 @@ def test_parameter_errors_name_block_and_parameter():
     with pytest.raises(TypeError, match="missing parameter"):
         GainOffset(DT, gain=1.0)
     with pytest.raises(ValueError, match="creep: need one weight per time constant"):
-        Creep(DT, taus=[0.1, 1.0], weights=[0.1], gain=1.0)
+        PronyCreep(DT, taus=[0.1, 1.0], weights=[0.1], gain=1.0)
     with pytest.raises(ValueError, match="input sample 2 is not finite"):
         GainOffset(DT, gain=1.0, offset=0.0).run([0.0, 1.0, math.nan])
     with pytest.raises(ValueError, match="unknown type"):
-        block_from_dict({"type": "Nope", "dt": DT, "params": {}})
+        effect_from_dict({"type": "Nope", "dt": DT, "params": {}})
 
 
 def test_core_kernels_errors():

@@ -1,6 +1,6 @@
 """Proof on concealed effects: one small effect (or none) hidden in realistic recordings.
 
-Every effect kind and a null case, on both generators of :mod:`preisach.diagnose.cases`:
+Every effect kind and a null case, on both generators of :mod:`preisach.studies.diagnosis_cases`:
 
 * ``own`` - the different-form proof: this package's truths, in functional forms unlike the
   candidates' and with randomised shape parameters (a rate-scaled Everett function with a
@@ -16,7 +16,8 @@ step-and-hold and filtered-noise experiments, with 1 mV noise and 14-bit quantis
 effect's unabsorbable part is 3.5 x the noise (invisible on a loop plot).  A model is
 identified from the sweep (which carries the effect too), the experiments are diagnosed with
 every candidate, and the verdict, the held-out improvement (>= 30 %) and physically
-meaningful quantities of the fitted effect (:func:`preisach.diagnose.cases.physical_checks`:
+meaningful quantities of the fitted effect
+(:func:`preisach.studies.diagnosis_cases.physical_checks`:
 a lag, a mode, a creep movement, a loop widening, a drift's size, a feedback slope) are
 checked against the truth.  Recordings are short (``scale`` 0.2) and only the first effect is
 selected in the 14 fixed cases, to keep them in about a minute on two processes; one more
@@ -33,7 +34,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from preisach.diagnose.cases import EFFECT_KINDS, run_case
+from preisach.studies.diagnosis_cases import EFFECT_KINDS, run_case
 
 pytestmark = pytest.mark.slow
 

@@ -230,7 +230,7 @@ def test_residual_map_of_a_lag_changes_sign_with_the_input_direction(model):
 
 def test_diagnosis_figure_is_the_reports():
     from preisach.diagnose import diagnose
-    from preisach.diagnose.cases import make_case
+    from preisach.studies.diagnosis_cases import make_case
 
     case = make_case("delay", seed=21, scale=0.3, effect_size=4.0)
     rep = diagnose(case.identify(), case.recordings[:3], candidates=["delay"])

@@ -125,11 +125,11 @@ def _run_demo(args: argparse.Namespace) -> int:
     from . import __version__, plotting
     from .daq import virtual_ss15
     from .diagnose import diagnose
-    from .diagnose.cases import make_case
     from .experiments import THESIS_GAINS, regulation_sweep
     from .identify import format_table, identify_fod, identify_surface
     from .model import PreisachModel
     from .neutral import check_mp, neutral_locus
+    from .studies.diagnosis_cases import make_case
     from .surface import TABLE_3_1
     from .verify import verify
     from .waveforms import cml_input, concatenate, decaying_sine, fod_sweep, wiping_out_input

@@ -5,43 +5,49 @@
 >>> report.plot(); report.to_json("report.json")             # doctest: +SKIP
 >>> report.model.save("augmented.npz")                       # doctest: +SKIP
 
-Modules: :mod:`~preisach.diagnose.blocks` (the physics blocks), :mod:`~preisach.diagnose.candidates`
-(candidate explanations), :mod:`~preisach.diagnose.locate` (residual analysis),
-:mod:`~preisach.diagnose.engine` (fitting, held-out scoring, forward selection),
-:mod:`~preisach.diagnose.augmented` (the augmented model), :mod:`~preisach.diagnose.cases`
-(concealed-effect test cases), :mod:`~preisach.diagnose.cli` (``preisach diagnose``).
+Modules, bottom to top: :mod:`~preisach.diagnose.effects` (the effect blocks: physics around the
+Preisach operator, distinct from the rig's :mod:`preisach.blocks`),
+:mod:`~preisach.diagnose.candidates` (candidate explanations), :mod:`~preisach.diagnose.data`
+(recordings prepared, noise level), :mod:`~preisach.diagnose.context` (base model, chains,
+fitting), :mod:`~preisach.diagnose.problem` (one candidate's training problem),
+:mod:`~preisach.diagnose.scoring` (folds, held-out scores, tests),
+:mod:`~preisach.diagnose.selection` (forward selection), :mod:`~preisach.diagnose.locate`
+(residual analysis), :mod:`~preisach.diagnose.augmented` (the augmented model),
+:mod:`~preisach.diagnose.core` (``diagnose``), :mod:`~preisach.diagnose.cli`
+(``preisach diagnose``).  The concealed-effect proof lives a layer above, in
+:mod:`preisach.studies.diagnosis_cases`.
 """
 
 from __future__ import annotations
 
 from .augmented import AugmentedModel, load_model
-from .blocks import (
-    BLOCK_TYPES,
-    Block,
-    Creep,
+from .candidates import CANDIDATES, EFFECTS, Candidate
+from .core import diagnose
+from .effects import (
+    EFFECT_TYPES,
+    EffectBlock,
     FirstOrderInputLag,
     FractionalDelay,
     GainOffset,
     LevelDependentGain,
     OutputFeedback,
+    PronyCreep,
     RateDependentPlay,
     RateDependentWidth,
+    SecondOrderMode,
     SensorDrift,
-    StructuralMode,
 )
-from .candidates import CANDIDATES, EFFECTS, Candidate
-from .core import diagnose
 from .locate import ResidualAnalysis, analyse_residuals
 from .report import DiagnosisReport, EffectReport
 
 __all__ = [
     "AugmentedModel",
-    "BLOCK_TYPES",
-    "Block",
+    "EFFECT_TYPES",
+    "EffectBlock",
     "CANDIDATES",
     "EFFECTS",
     "Candidate",
-    "Creep",
+    "PronyCreep",
     "DiagnosisReport",
     "FirstOrderInputLag",
     "EffectReport",
@@ -53,7 +59,7 @@ __all__ = [
     "RateDependentWidth",
     "ResidualAnalysis",
     "SensorDrift",
-    "StructuralMode",
+    "SecondOrderMode",
     "analyse_residuals",
     "diagnose",
     "load_model",

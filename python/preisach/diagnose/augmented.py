@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike
 from .. import _core
 from .._io import atomic_write
 from ..model import PreisachModel, SimulationResult, State
-from .blocks import Block, OutputFeedback, RateDependentWidth, block_from_dict
+from .effects import EffectBlock, OutputFeedback, RateDependentWidth, effect_from_dict
 
 __all__ = ["AugmentedModel", "load_model"]
 
@@ -35,7 +35,7 @@ class AugmentedModel:
     ----------
     base : PreisachModel
         The classical Preisach model (V in, V out).
-    blocks : sequence of Block
+    blocks : sequence of EffectBlock
         Physics blocks; each acts on the input or the output according to its ``side``, in
         the given order within its side.  Their parameters are physical (seconds, hertz,
         volts), so the model simulates at any sample time.
@@ -49,7 +49,7 @@ class AugmentedModel:
     def __init__(
         self,
         base: PreisachModel,
-        blocks: Sequence[Block] = (),
+        blocks: Sequence[EffectBlock] = (),
         *,
         name: str = "",
         metadata: dict[str, Any] | None = None,
@@ -57,15 +57,15 @@ class AugmentedModel:
         if not isinstance(base, PreisachModel):
             raise TypeError(f"base: expected a PreisachModel, got {type(base).__name__}")
         for b in blocks:
-            if not isinstance(b, Block):
-                raise TypeError(f"blocks: expected Block instances, got {type(b).__name__}")
+            if not isinstance(b, EffectBlock):
+                raise TypeError(f"blocks: expected EffectBlock instances, got {type(b).__name__}")
         self.base = base
-        self.blocks: list[Block] = list(blocks)
+        self.blocks: list[EffectBlock] = list(blocks)
         self.name = name or base.name
         self.metadata: dict[str, Any] = dict(metadata or {})
 
     @property
-    def input_blocks(self) -> list[Block]:
+    def input_blocks(self) -> list[EffectBlock]:
         """Blocks before the Preisach operator."""
         return [b for b in self.blocks if b.side == "input"]
 
@@ -75,7 +75,7 @@ class AugmentedModel:
         return [b for b in self.blocks if isinstance(b, OutputFeedback)]
 
     @property
-    def output_blocks(self) -> list[Block]:
+    def output_blocks(self) -> list[EffectBlock]:
         """Blocks after the Preisach operator."""
         return [b for b in self.blocks if b.side == "output"]
 
@@ -245,7 +245,7 @@ class AugmentedModel:
             metadata=b.get("metadata", {}),
             out_of_range=b.get("out_of_range", "clamp"),
         )
-        blocks = [block_from_dict(d) for d in info.get("blocks", [])]
+        blocks = [effect_from_dict(d) for d in info.get("blocks", [])]
         return cls(base, blocks, name=info.get("name", ""), metadata=info.get("metadata", {}))
 
     def describe(self) -> str:

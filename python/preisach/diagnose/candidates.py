@@ -5,10 +5,10 @@ lag on the input, as threshold dilation growing with a power of the rate (sublin
 included), and as a rate-scaled loop width; the best form is kept and reported under the
 effect's name.
 
-A candidate knows its block (``preisach.diagnose.blocks``), where it sits in the chain
+A candidate knows its block (``preisach.diagnose.effects``), where it sits in the chain
 (input side, or its place among the output blocks), its fitted parameters with bounds and a
 scale, how to find starting values, and how to state its result in one line.  The engine
-(:mod:`preisach.diagnose.engine`) fits it on training samples and scores it on held-out ones.
+(:mod:`preisach.diagnose.selection`) fits it on training samples and scores it on held-out ones.
 
 Chain: input side (``rate_dependence`` threshold dilation) -> Preisach operator (with the
 ``non_congruence`` output feedback) -> output side in this order: ``rate_dependence`` loop
@@ -27,22 +27,22 @@ from typing import TYPE_CHECKING, Any, ClassVar, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from .blocks import (
-    Block,
-    Creep,
+from .effects import (
+    EffectBlock,
     FirstOrderInputLag,
     FractionalDelay,
     GainOffset,
     LevelDependentGain,
     OutputFeedback,
+    PronyCreep,
     RateDependentPlay,
     RateDependentWidth,
+    SecondOrderMode,
     SensorDrift,
-    StructuralMode,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .engine import Context, Stage
+    from .context import Context, Stage
 
 __all__ = ["CANDIDATES", "EFFECTS", "Candidate", "ParamSpec", "default_candidates"]
 
@@ -111,7 +111,7 @@ class Candidate:
         """Block parameters (physical units) from the fitted vector."""
         raise NotImplementedError
 
-    def block(self, x: Array, dt: float) -> Block:
+    def block(self, x: Array, dt: float) -> EffectBlock:
         """Return the block for the fitted vector ``x`` at sample time ``dt``.
 
         Blocks are cached by ``(x, dt)`` and thread (a fit evaluates the same parameters on
@@ -133,7 +133,7 @@ class Candidate:
             blk = cache[key] = self.block_type(dt, **self.params(x))
         return blk
 
-    block_type: ClassVar[type[Block]] = Block
+    block_type: ClassVar[type[EffectBlock]] = EffectBlock
 
     def apply(self, x: Array, signal_in: Array, dt: float, stage: Stage, ctx: Context) -> Array:
         """Run the block from its steady state at the first sample (output side)."""
@@ -312,7 +312,7 @@ class ModeCandidate(Candidate):
     name = "structural_resonance"
     order = 2
     physics = "a lightly damped structural mode between the hysteresis and the sensor"
-    block_type = StructuralMode
+    block_type = SecondOrderMode
 
     def specs(self, ctx: Context) -> list[ParamSpec]:
         return [
@@ -331,9 +331,9 @@ class ModeCandidate(Candidate):
         found = []
         for z in (0.015, 0.06, 0.25):
             for f in grid:
-                blk = StructuralMode(ctx.dt_min, f_n=f, zeta=z, participation=1.0)
+                blk = SecondOrderMode(ctx.dt_min, f_n=f, zeta=z, participation=1.0)
 
-                def make(i: int, up: Array, blk: StructuralMode = blk) -> Array:
+                def make(i: int, up: Array, blk: SecondOrderMode = blk) -> Array:
                     b = blk if ctx.recs[i].dt == blk.dt else blk.with_dt(ctx.recs[i].dt)
                     b.reset(float(up[0]))
                     return b.run(up) - up
@@ -364,7 +364,7 @@ class CreepCandidate(Candidate):
     name = "creep"
     order = 1
     physics = "after input changes the output keeps drifting toward its equilibrium (creep)"
-    block_type = Creep
+    block_type = PronyCreep
     TAUS: ClassVar[tuple[float, ...]] = (0.02, 0.2, 2.0, 20.0)
 
     def prepare(self, ctx: Context) -> None:

@@ -15,11 +15,13 @@ from threadpoolctl import threadpool_limits
 from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
-from .blocks import Block
 from .candidates import CANDIDATES, Candidate, DriftCandidate
-from .engine import Chain, Context, FittedEffect, noise_sigma, prepare_recordings, run_selection
+from .context import Chain, Context, FittedEffect
+from .data import noise_sigma, prepare_recordings
+from .effects import EffectBlock
 from .locate import analyse_residuals
 from .report import DiagnosisReport, EffectReport, candidate_table, where_of
+from .selection import run_selection
 
 __all__ = ["diagnose"]
 
@@ -131,7 +133,7 @@ def diagnose(
     physics blocks with few parameters around the Preisach operator - are then fitted on
     training data and scored on held-out data in a greedy forward selection that keeps an
     effect only when it lowers the held-out error clearly beyond what the noise allows (see
-    :mod:`preisach.diagnose.engine`).
+    :mod:`preisach.diagnose.selection`).
 
     Parameters
     ----------
@@ -384,7 +386,7 @@ def diagnose(
     ordered = sorted(
         chain.effects, key=lambda e: ({"input": 0, "feedback": 1}.get(e.cand.side, 2), e.cand.order)
     )
-    blocks: list[Block] = [e.cand.block(e.x, ctx.dt_min) for e in ordered]
+    blocks: list[EffectBlock] = [e.cand.block(e.x, ctx.dt_min) for e in ordered]
     if drift_eff is not None:
         blocks.append(drift_eff.cand.block(drift_eff.x, ctx.dt_min))
     aug = AugmentedModel(

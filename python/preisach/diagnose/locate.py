@@ -247,7 +247,7 @@ def analyse_residuals(
     ----------
     recs : sequence of prepared recordings
         Objects with ``name``, ``t``, ``u``, ``y``, ``dt`` and ``usable`` (see
-        :func:`preisach.diagnose.engine.prepare_recordings`).
+        :func:`preisach.diagnose.data.prepare_recordings`).
     residuals, predictions : sequence of ndarray
         ``y - y_sim`` and ``y_sim`` (V) per recording; NaN residuals are ignored.
     noise_sigma : float

@@ -19,7 +19,8 @@ from .locate import ResidualAnalysis, motion_features
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-    from .engine import Rec, StepResult
+    from .data import Rec
+    from .selection import StepResult
 
 __all__ = ["DiagnosisReport", "EffectReport"]
 

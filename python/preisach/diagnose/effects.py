@@ -16,17 +16,17 @@ are discretised exactly under this zero-order hold.
 
 Overlap with the virtual rig's C++ blocks (:mod:`preisach.blocks`).  Several candidates model
 the same physics as a rig block; they are kept as independent implementations here because the
-proof of diagnosis (:mod:`preisach.diagnose.cases`) uses the rig's blocks as the truth, and a
-candidate that called the truth's code would prove nothing about the code.  A unified block
+proof of diagnosis (:mod:`preisach.studies.diagnosis_cases`) uses the rig's blocks as the truth,
+and a candidate that called the truth's code would prove nothing about the code.  A unified block
 library would map them as follows:
 
 ==========================  =============================================  ====================
 diagnosis block             rig block                                      difference
 ==========================  =============================================  ====================
-:class:`StructuralMode`     ``StructuralMode(frequency, damping)``         same discretisation;
+:class:`SecondOrderMode`    ``StructuralMode(frequency, damping)``         same discretisation;
                                                                            adds participation
 :class:`FirstOrderInputLag` ``InputLag(time_constant)``                    same physics
-:class:`Creep`              ``Creep(rate, tau_min, tau_max)``              both sums of lags;
+:class:`PronyCreep`         ``Creep(rate, tau_min, tau_max)``              both sums of lags;
                                                                            here free weights at
                                                                            fixed time constants
                                                                            and a settled gain
@@ -57,9 +57,9 @@ from scipy import signal
 from .. import _core
 
 __all__ = [
-    "BLOCK_TYPES",
-    "Block",
-    "Creep",
+    "EFFECT_TYPES",
+    "EffectBlock",
+    "PronyCreep",
     "FirstOrderInputLag",
     "FractionalDelay",
     "GainOffset",
@@ -68,8 +68,8 @@ __all__ = [
     "RateDependentPlay",
     "RateDependentWidth",
     "SensorDrift",
-    "StructuralMode",
-    "block_from_dict",
+    "SecondOrderMode",
+    "effect_from_dict",
 ]
 
 Array = NDArray[np.float64]
@@ -119,7 +119,7 @@ def _as_input(kind: str, x: ArrayLike) -> Array:
     return a
 
 
-class Block:
+class EffectBlock:
     """Base class: a SISO block with named parameters, a state, ``reset``, ``step``, ``run``.
 
     Subclasses set ``kind`` (short identifier), ``side`` (``"input"`` or ``"output"``),
@@ -174,7 +174,7 @@ class Block:
         """Unit of every parameter."""
         return dict(self.PARAMS)
 
-    def with_dt(self, dt: float) -> Block:
+    def with_dt(self, dt: float) -> EffectBlock:
         """Return the same physical block for another sample time (fresh state)."""
         return type(self)(dt, **self._params)
 
@@ -244,7 +244,7 @@ def _steady_zi(b: Array, a: Array) -> Array:
     return np.cumsum(d[::-1])[::-1][1:]
 
 
-class _LinearFilter(Block):
+class _LinearFilter(EffectBlock):
     """A unit-DC-gain linear filter y = x + m (H x - x) held as ``(b, a)`` + ``zi``."""
 
     _b: Array
@@ -315,7 +315,7 @@ def _mode_zoh(wn: float, zeta: float, dt: float) -> tuple[Array, Array]:
     return b, a
 
 
-class StructuralMode(_LinearFilter):
+class SecondOrderMode(_LinearFilter):
     """A lightly damped structural mode after the hysteresis (output side).
 
     ``y = x + m (G x - x)`` with ``G(s) = wn^2 / (s^2 + 2 zeta wn s + wn^2)``,
@@ -346,7 +346,7 @@ class StructuralMode(_LinearFilter):
         return b, a, p["participation"]
 
 
-class Creep(Block):
+class PronyCreep(EffectBlock):
     """Creep: part of every output change arrives slowly (output side).
 
     ``y = g x + sum_i c_i (L_i x - x)`` with first-order lags ``L_i`` of time constants
@@ -410,7 +410,7 @@ class Creep(Block):
         return y
 
 
-class FractionalDelay(Block):
+class FractionalDelay(EffectBlock):
     """Transport delay or measurement lag of the output (output side).
 
     ``y(t) = x(t - tau)``, linearly interpolated between samples, so ``tau`` need not be a
@@ -451,7 +451,7 @@ class FractionalDelay(Block):
         return y
 
 
-class FirstOrderInputLag(Block):
+class FirstOrderInputLag(EffectBlock):
     """Rate-dependent hysteresis from a lag before the hysteresis (input side).
 
     The relays see the input through a first-order lag, ``tau dz/dt = u - z`` (exact under
@@ -493,7 +493,7 @@ class FirstOrderInputLag(Block):
         return y
 
 
-class RateDependentPlay(Block):
+class RateDependentPlay(EffectBlock):
     """Rate-dependent hysteresis: loops widen with the input rate (input side).
 
     The Preisach operator sees the input through a play (backlash) operator of half-width
@@ -551,7 +551,7 @@ class RateDependentPlay(Block):
         return np.asarray(z)
 
 
-class SensorDrift(Block):
+class SensorDrift(EffectBlock):
     """Sensor offset drifting with time, unrelated to the input (output side).
 
     ``y = x + offset + rate * t`` with ``t`` the time since :meth:`reset`.  Diagnosis fits
@@ -585,7 +585,7 @@ class SensorDrift(Block):
         return x + self._params["offset"] + self._params["rate"] * t
 
 
-class LevelDependentGain(Block):
+class LevelDependentGain(EffectBlock):
     """A nonlinear sensor: a static curve between the actuator output and the reading (output side).
 
     ``y = x + Y (c2 q^2 + c3 q^3)``, ``q = (x - x_c) / Y``: a static map after the Preisach
@@ -639,7 +639,7 @@ class LevelDependentGain(Block):
         return x
 
 
-class OutputFeedback(Block):
+class OutputFeedback(EffectBlock):
     """Non-congruent minor loops: the output feeds back on the relays' input (Preisach stage).
 
     The relays see ``u_eff = u + a d + b d^2 / span + c d^3 / span^2``, ``d = y_prev - y_c``
@@ -698,7 +698,7 @@ class OutputFeedback(Block):
         return np.asarray(y), np.asarray(ue), fin
 
 
-class RateDependentWidth(Block):
+class RateDependentWidth(EffectBlock):
     """Rate-dependent hysteresis: the loop width grows with the input rate (output side).
 
     ``y = x + c (rho / rho_ref) ** p (x - A(u))``: the hysteretic deviation of the Preisach
@@ -752,7 +752,7 @@ class RateDependentWidth(Block):
         )
 
 
-class GainOffset(Block):
+class GainOffset(EffectBlock):
     """Calibration error: the output scale and zero differ from the model's (output side).
 
     ``y = gain * x + offset``.
@@ -778,12 +778,12 @@ class GainOffset(Block):
         return self._params["gain"] * x + self._params["offset"]
 
 
-#: Block classes by class name (several may share a ``kind``: two forms of rate dependence).
-BLOCK_TYPES: dict[str, type[Block]] = {
+#: EffectBlock classes by class name (several may share a ``kind``: two forms of rate dependence).
+EFFECT_TYPES: dict[str, type[EffectBlock]] = {
     c.__name__: c
     for c in (
-        StructuralMode,
-        Creep,
+        SecondOrderMode,
+        PronyCreep,
         FractionalDelay,
         FirstOrderInputLag,
         RateDependentPlay,
@@ -796,12 +796,12 @@ BLOCK_TYPES: dict[str, type[Block]] = {
 }
 
 
-def block_from_dict(data: dict[str, Any]) -> Block:
+def effect_from_dict(data: dict[str, Any]) -> EffectBlock:
     """Inverse of :meth:`Block.to_dict`."""
     try:
-        cls = BLOCK_TYPES[data["type"]]
+        cls = EFFECT_TYPES[data["type"]]
     except KeyError as exc:
         raise ValueError(
-            f"block: unknown type {data.get('type')!r}; known: {sorted(BLOCK_TYPES)}"
+            f"block: unknown type {data.get('type')!r}; known: {sorted(EFFECT_TYPES)}"
         ) from exc
     return cls(float(data["dt"]), **data["params"])

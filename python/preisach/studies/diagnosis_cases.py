@@ -568,7 +568,7 @@ def run_case(
         (wall time, s) and ``summary`` (the report's text).
 
     """
-    from .core import diagnose
+    from ..diagnose import diagnose
 
     t0 = time.perf_counter()
     case = make_case(
@@ -692,7 +692,7 @@ def physical_checks(case: Case, report: Any) -> dict[str, dict[str, float]]:
         case's kind, for ``"none"``, or without ``case.device``.
 
     """
-    from .augmented import AugmentedModel
+    from ..diagnose.augmented import AugmentedModel
 
     kind = case.kind
     if case.device is None or kind == "none" or report.verdict != kind:

@@ -1,0 +1,274 @@
+"""The training problem of one candidate after a fixed chain, evaluated fast.
+
+Every evaluation of a candidate's parameters predicts the training samples of every
+recording; with a refitted base the Preisach weights are profiled out (re-solved by least
+squares for the parameters, from the C++ normal equations), and with a drift the residual is
+projected off each recording's drift P-spline.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable, cast
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+from scipy import linalg
+
+from .. import _core
+from .candidates import Candidate
+from .context import Base, Chain, Context, FittedEffect, Stage, _pool
+
+__all__ = ["Problem"]
+
+Array = NDArray[np.float64]
+Mask = NDArray[np.bool_]
+
+
+class Problem:
+    """Training residuals of one candidate after a fixed chain, evaluated fast.
+
+    ``reference`` (a fitted feedback effect, optional) closes the reference chain's loop for
+    the feedback signal outside the training samples (see ``feedback_from`` below).
+    """
+
+    def __init__(
+        self,
+        ctx: Context,
+        cand: Candidate,
+        fixed: Chain,
+        train: list[Mask],
+        drift: bool,
+        profile: bool = False,
+        reference: FittedEffect | None = None,
+    ) -> None:
+        self.ctx, self.cand, self.fixed = ctx, cand, fixed
+        self.train, self.drift, self.profile = train, drift, profile
+        specs = cand.specs(ctx)
+        self.lo = np.array([s.lo for s in specs], float)
+        self.hi = np.array([s.hi for s in specs], float)
+        self.scale = np.array([s.scale for s in specs], float)
+        n_train = int(sum(int(m.sum()) for m in train))
+        stride = max(1, int(math.ceil(n_train / ctx.max_fit_samples)))
+        self.idx = [np.flatnonzero(m)[::stride] for m in train]
+        self.coarse = [ix[::4] for ix in self.idx]
+        self.blocks = np.concatenate([ctx.recs[i].block[ix] for i, ix in enumerate(self.idx)])
+        self.proj: list[tuple[Array, Any] | None] = []
+        for i, ix in enumerate(self.idx):
+            if drift and ix.size:
+                A = ctx.drift_basis(i)[ix]
+                G, _ = ctx._drift_system(A)
+                self.proj.append((A, np.linalg.inv(G)))
+            else:
+                self.proj.append(None)
+        effs = fixed.effects
+        outs = [e for e in effs if e.cand.side == "output"]
+        self.ins = [e for e in effs if e.cand.side != "output" and e.cand.side != cand.side]
+        self.up: dict[int, Array] = {}
+        self.stages: dict[int, Stage] = {}
+        if cand.side == "output":
+            for i, ix in enumerate(self.idx):
+                if ix.size:
+                    y, _, st = ctx.stage(i, fixed.base, self.ins)
+                    self.stages[i] = st
+                    self.up[i] = ctx.output_side(
+                        i, y, [e for e in outs if e.cand.order < cand.order], st
+                    )
+            self.down = [e for e in outs if e.cand.order > cand.order]
+        else:
+            self.down = outs
+        self.outs = outs
+        # a feedback candidate with profiled weights is fitted in series-parallel form: the
+        # relays see the input shifted by the feedback of the *measured* Preisach output
+        # (the recording minus the output blocks' correction at the reference base), so the
+        # weights for given feedback parameters are an exact linear least-squares problem;
+        # closing the loop through the simulated output instead would tie the effective input
+        # to the reference weights, which have absorbed most of the feedback.  Held-out
+        # predictions always close the loop.  Outside the training samples (held-out blocks,
+        # burn-in) the measured output must not enter the fit - yet the relays' memory at
+        # later training samples depends on the input they saw there - so the feedback is
+        # driven by the reference chain's simulated Preisach output instead: the reference
+        # base with the previous alternation's feedback loop closed (``reference``), or
+        # without feedback in the first one.
+        self.feedback_from: dict[int, Array] | None = None
+        if profile:
+            # regressors at the reference base; fixed for output-side candidates
+            self.ref_stage = {}
+            self.R: dict[int, sp.csr_matrix] = {}
+            moved = bool(self.ins)
+            for i, m in enumerate(train):
+                if m.any():
+                    P, ue, st = ctx.stage(i, fixed.base, self.ins)
+                    self.ref_stage[i] = (P, st)
+                    self.R[i] = ctx.regressor(i, ue) if moved else ctx.regressor(i)
+            self.cacheable = not moved
+            self.factor = ctx.normal_factor(self.R, train, drift, self.cacheable)
+            if cand.side == "feedback":
+                self.feedback_from = {}
+                ref_fb = [reference] if reference is not None else []
+                for i, (P, st) in self.ref_stage.items():
+                    measured = ctx.recs[i].y - (ctx.output_side(i, P, outs, st) - P)
+                    sim = ctx.stage(i, fixed.base, [*self.ins, *ref_fb])[0] if ref_fb else P
+                    self.feedback_from[i] = np.where(train[i], measured, sim)
+
+    def _outputs(self, i: int, x: Array, y: Array, st: Stage) -> Array:
+        """All output blocks (fixed ones and, if output-side, the candidate) applied to ``y``."""
+        effs = list(self.outs)
+        if self.cand.side == "output":
+            effs.append(FittedEffect(self.cand, x))
+        return self.ctx.output_side(i, y, effs, st)
+
+    def theta(self, x: Array, coarse: bool = False) -> Array:
+        """Profiled Preisach weights for the candidate parameters ``x``.
+
+        ``coarse``: for an input-side or feedback candidate without drift, accumulate the
+        normal equations over every fourth training sample only (the quick evaluations of a
+        start-value scan).
+        """
+        ctx = self.ctx
+        if self.cand.side == "output":
+            Rs = self.R
+            targets = {}
+            for i, (P, st) in self.ref_stage.items():
+                targets[i] = ctx.recs[i].y - (self._outputs(i, x, P, st) - P)
+            return ctx.solve_theta(Rs, targets, self.train, self.drift, self.cacheable, self.factor)
+        effs = [*self.fixed.effects, FittedEffect(self.cand, x)]
+        if self.drift:  # the drift projection needs the regressors themselves
+            Rs, targets, _ = ctx.linearised_targets(
+                effs, self.fixed.base, self.train, self.feedback_from
+            )
+            self._last_R = Rs
+            self._last_u = None
+            return ctx.solve_theta(Rs, targets, self.train, self.drift, False)
+        # normal equations straight from the C++ regressor, without forming it
+        outs = [e for e in effs if e.cand.side == "output"]
+        p = ctx.n_theta
+        ctx.table(self.fixed.base)  # built once, before the threads share it
+
+        def one(i: int) -> tuple[Array, Array, Array]:
+            r = ctx.recs[i]
+            fb = None if self.feedback_from is None else self.feedback_from[i]
+            # the reference base's output is needed only to linearise output blocks
+            ue_open = None if outs else ctx.relay_input(i, effs, fb)
+            if ue_open is None:
+                P, ue, st = ctx.stage(i, self.fixed.base, effs, fb)
+                target = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y
+            else:
+                ue, target = ue_open, r.y
+            if coarse:
+                fold = np.full(r.n, -1, np.int32)
+                fold[self.coarse[i]] = 0
+            else:
+                fold = np.where(self.train[i], 0, -1).astype(np.int32)
+            gram, b, *_ = _core.normal_equations(ctx.levels, ue, target, r.state0, fold, 1, "clamp")
+            return gram[0], b[0], ue
+
+        # the recordings are independent and the C++ loops release the GIL: one per core,
+        # summed in recording order so the result does not depend on the threads
+        todo = [i for i, m in enumerate(self.train) if m.any()]
+        N = np.zeros((p, p))
+        rhs = np.zeros(p)
+        self._last_u = {}
+        for i, (gram, b, ue) in zip(todo, _pool().map(one, todo)):
+            N += gram
+            rhs += b
+            self._last_u[i] = ue
+        lam = 1e-7 * max(float(np.trace(N)) / p, 1e-300)
+        N[np.diag_indices(p)] += lam
+        rhs += lam * ctx.theta0
+        # Cholesky without the condition estimate of linalg.solve (the ridge keeps N definite)
+        return linalg.cho_solve(linalg.cho_factor(N, check_finite=False), rhs, check_finite=False)
+
+    def _profiled_predict(self, x: Array, coarse: bool = False) -> dict[int, Array]:
+        theta = self.theta(x, coarse)
+        if self.cand.side != "output" and self._last_u is not None:
+            table = self.ctx.table(Base(theta))
+            recs, last = self.ctx.recs, self._last_u
+
+            def sim(i: int) -> Array:
+                return cast(Array, _core.simulate(table, last[i], recs[i].state0, "clamp")[0])
+
+            Ps = dict(zip(last, _pool().map(sim, last)))
+        else:
+            Rs = self.R if self.cand.side == "output" else self._last_R
+            Ps = {i: R @ theta for i, R in Rs.items()}
+        out = {}
+        for i, P in Ps.items():
+            if self.cand.side == "output":
+                st = self.ref_stage[i][1]
+            else:  # the Preisach input with the candidate; the reference table for A(u)
+                effs = [*self.ins, FittedEffect(self.cand, x)]
+                st = Stage(i, self.ctx.preisach_input(i, effs), self.ctx.table(self.fixed.base))
+            out[i] = self._outputs(i, x, P, st)
+        return out
+
+    def scan_linear(self, make: Callable[[int, Array], Array]) -> tuple[float, float]:
+        """Project the training residual on one extra signal (output-side candidates only).
+
+        ``make(i, up)`` returns the extra signal of recording ``i`` from the signal entering
+        the candidate; returns ``(coefficient, SSE reduction)`` of the least-squares fit
+        ``residual ~ c * signal`` on the (coarse) training samples, ignoring downstream blocks.
+        """
+        rg = gg = 0.0
+        for i, ix in enumerate(self.coarse):
+            if ix.size == 0 or i not in self.up:
+                continue
+            g = make(i, self.up[i])[ix]
+            r = (
+                self.ctx.recs[i].y[ix]
+                - self.ctx.output_side(i, self.up[i], self.down, self.stages[i])[ix]
+            )
+            pr = self.proj[i]
+            if pr is not None:
+                A, Ginv = pr
+                sub = np.searchsorted(self.idx[i], ix)
+                A = A[sub]
+                G = A.T @ A
+                r = r - A @ np.linalg.lstsq(G, A.T @ r, rcond=None)[0]
+                g = g - A @ np.linalg.lstsq(G, A.T @ g, rcond=None)[0]
+            rg += float(r @ g)
+            gg += float(g @ g)
+        if gg <= 0:
+            return 0.0, 0.0
+        return rg / gg, rg * rg / gg
+
+    def clip(self, x: Array) -> Array:
+        """Clip ``x`` just inside the parameter bounds."""
+        span = self.hi - self.lo
+        eps = np.where(np.isfinite(span), 1e-9 * span, 0.0)
+        return np.clip(np.asarray(x, float), self.lo + eps, self.hi - eps)
+
+    def predict(self, i: int, x: Array) -> Array:
+        """Prediction (V) of recording ``i`` with the candidate at ``x`` (weights fixed)."""
+        ctx, r = self.ctx, self.ctx.recs[i]
+        if self.cand.side == "output":
+            st = self.stages[i]
+            y = self.cand.apply(x, self.up[i], r.dt, st, ctx)
+        else:
+            y, _, st = ctx.stage(i, self.fixed.base, [*self.ins, FittedEffect(self.cand, x)])
+        return ctx.output_side(i, y, self.down, st)
+
+    def residuals(self, x: Array, coarse: bool = False) -> Array:
+        """Training residuals (V) at ``x``, drift projected off; ``coarse``: every fourth."""
+        self.ctx.n_evals += 1
+        parts = []
+        todo = [i for i, ix in enumerate(self.idx) if ix.size]
+        if self.profile:
+            preds = self._profiled_predict(x, coarse)
+        else:  # independent recordings, C++ simulations that release the GIL: one per core
+            preds = dict(zip(todo, _pool().map(lambda i: self.predict(i, x), todo)))
+        for i in todo:
+            ix = self.idx[i]
+            res = self.ctx.recs[i].y[ix] - preds[i][ix]
+            pr = self.proj[i]
+            if pr is not None:
+                A, Ginv = pr
+                res = res - A @ (Ginv @ (A.T @ res))
+            parts.append(res[::4] if coarse else res)
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def sse(self, x: Array, coarse: bool = False) -> float:
+        """Training sum of squared residuals (V^2) at ``x``."""
+        r = self.residuals(x, coarse)
+        return float(r @ r)

@@ -1,0 +1,211 @@
+"""The diagnosis engine: prepare recordings, fit candidates, score them on held-out data.
+
+Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing description):
+
+1. Every recording is simulated from its initial state (negative or positive saturation when
+   it starts there, else the anhysteretic state with a burn-in that masks the samples until
+   the input has visited both its extremes).  Identification recordings (the data the model
+   was identified from) are training data only, never scored.
+2. The measurement noise is estimated from the data: the robust standard deviation of the
+   third differences of the residual (white noise and quantisation pass them, smooth model
+   errors do not).
+3. Cross-validation folds: alternating time blocks of every recording (``cv="blocks"``, the
+   default: every experiment type is in both the training and the held-out data, so an
+   effect whose evidence sits in one experiment - ringing after steps - can be learnt), or
+   groups of whole recordings held out (``cv="recordings"``: stricter, an effect must carry
+   over to experiments it was not fitted on).
+4. The base model is either the given one, or - when identification recordings are given -
+   refitted on every fold's training data together with the candidate: its Everett table
+   on a grid of levels is linear in the output (``preisach._core.regressor_rows``), so it is
+   re-solved by least squares for the candidate's current blocks (the sweep carries the
+   effect, so the identified model has absorbed part of it; refitting undoes that).
+   The weights are profiled out of every evaluation of the candidate's parameters (blocks
+   linearised about a reference base that is updated twice).  Once a feedback effect is
+   kept, later candidates keep the weights it was fitted with (:meth:`Context.refits`).
+5. Greedy forward selection.  In each step every remaining candidate is fitted on each
+   fold's training samples (with the effects kept so far) and predicts the held-out ones;
+   the pooled held-out residual scores it.  A candidate may be kept only if it lowers the
+   held-out RMSE by at least ``min_gain``, explains at least ``noise_factor`` times the noise
+   variance and wins a one-sided sign-flip test over held-out blocks at level ``alpha``.
+   Of those, the one with the lowest held-out error is kept - unless one with fewer
+   parameters is not significantly worse on the held-out blocks (sign-flip test at
+   ``tie_alpha``), which is then preferred (parsimony among explanations the data cannot tell
+   apart; the held-out scoring itself already charges for over-fitting, so no information
+   criterion is added: the number of parameters matters only through this preference).
+   Selection stops
+   when nothing qualifies; candidates that lowered the held-out error by less than
+   ``retry_gain`` (2 %) in a step are not tried again in the next.
+6. The kept effects are refitted on all usable samples; parameter uncertainties come from the
+   Jacobian at the optimum with a block-clustered (sandwich) covariance, which allows for
+   the residual's autocorrelation.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Callable
+
+from .candidates import Candidate, DriftCandidate
+from .context import Chain, Context, Fold
+from .scoring import Score, heldout_score, make_folds, sign_flip_p
+
+__all__ = ["Selection", "StepResult", "run_selection"]
+
+
+@dataclass
+class StepResult:
+    """One step of the forward selection."""
+
+    baseline: Score
+    scores: dict[str, Score]
+    n_params: dict[str, float]
+    p_values: dict[str, float]
+    gains: dict[str, float]
+    explained: dict[str, float]  # held-out MSE reduction / noise variance
+    qualifies: dict[str, bool]
+    reasons: dict[str, str]
+    chosen: str | None
+    chains: dict[str, list[Chain]]
+
+
+@dataclass
+class Selection:
+    """Outcome of :func:`run_selection`."""
+
+    steps: list[StepResult]
+    kept: list[str]
+    folds: list[Fold]
+    given: Score
+    refit_baseline: Score | None
+
+
+def _choose(
+    quals: list[str], scores: dict[str, Score], n_par: dict[str, float], tie_alpha: float, seed: int
+) -> str:
+    """Pick the qualifying candidate with the lowest held-out error, or a simpler one as good.
+
+    A candidate with fewer parameters is preferred when the best one is not significantly
+    better on the held-out blocks (one-sided sign-flip test at ``tie_alpha``): parsimony among
+    explanations the data cannot tell apart.
+    """
+    best = min(quals, key=lambda k: scores[k].mse)
+    simpler = [
+        k
+        for k in quals
+        if n_par[k] < n_par[best]
+        and sign_flip_p(scores[k].sse_blocks - scores[best].sse_blocks, seed=seed) >= tie_alpha
+    ]
+    if simpler:
+        return min(simpler, key=lambda k: (n_par[k], scores[k].mse))
+    return best
+
+
+def run_selection(
+    ctx: Context,
+    candidates: Sequence[Candidate],
+    *,
+    sigma: float,
+    cv: str = "auto",
+    min_gain: float = 0.10,
+    noise_factor: float = 1.0,
+    alpha: float = 0.01,
+    max_effects: int = 3,
+    retry_gain: float = 0.02,
+    tie_alpha: float = 0.05,
+    progress: Callable[[str], None] | None = None,
+) -> Selection:
+    """Greedy forward selection (see the module docstring)."""
+    for c in candidates:
+        c.prepare(ctx)
+    scheme = "blocks" if cv == "auto" else cv
+    folds = make_folds(ctx.recs, scheme)
+    given_chains = [Chain(ctx.given) for _ in folds]
+    given = heldout_score(ctx, folds, given_chains, False)
+    refit_score = None
+    if ctx.refit:
+        chains = [Chain(ctx.refit_base([], ctx.given, f.train, False)) for f in folds]
+        refit_score = heldout_score(ctx, folds, chains, False)
+        if progress:
+            progress(
+                "  base refitted on the training folds: held-out RMSE "
+                f"{1e3 * refit_score.rmse:.4g} mV "
+                f"(given model {1e3 * given.rmse:.4g} mV)"
+            )
+        baseline = refit_score
+    else:
+        chains = given_chains
+        baseline = given
+    kept: list[str] = []
+    drift = False
+    steps: list[StepResult] = []
+    remaining = {c.key: c for c in candidates}
+    while remaining and len(kept) < max_effects:
+        scores: dict[str, Score] = {}
+        new_chains: dict[str, list[Chain]] = {}
+        n_par: dict[str, float] = {}
+        for name, cand in remaining.items():
+            t0 = _time.perf_counter()
+            if isinstance(cand, DriftCandidate):
+                if all(ctx.refits(ch) for ch in chains):
+                    cc = [
+                        Chain(ctx.refit_base(ch.effects, ch.base, f.train, True), ch.effects)
+                        for ch, f in zip(chains, folds)
+                    ]
+                else:
+                    cc = chains
+                scores[name] = heldout_score(ctx, folds, cc, True)
+                new_chains[name] = cc
+                n_par[name] = ctx.drift_dof()
+            else:
+                cc = [ctx.fit(cand, ch, f.train, drift) for ch, f in zip(chains, folds)]
+                scores[name] = heldout_score(ctx, folds, cc, drift)
+                new_chains[name] = cc
+                n_par[name] = float(cand.n_params(ctx))
+            if progress:
+                progress(
+                    f"  {name}: held-out RMSE {1e3 * scores[name].rmse:.4g} mV "
+                    f"({_time.perf_counter() - t0:.2f} s)"
+                )
+        pv, gains, expl, ok, why = {}, {}, {}, {}, {}
+        for name, sc in scores.items():
+            d = baseline.sse_blocks - sc.sse_blocks
+            pv[name] = sign_flip_p(d, seed=len(steps))
+            gains[name] = 1.0 - sc.rmse / baseline.rmse if baseline.rmse > 0 else 0.0
+            expl[name] = (baseline.mse - sc.mse) / sigma**2 if sigma > 0 else float("inf")
+            reasons = []
+            if gains[name] < min_gain:
+                reasons.append(
+                    f"held-out RMSE lower by only {100 * gains[name]:.1f} % "
+                    f"(< {100 * min_gain:.0f} %)"
+                )
+            if expl[name] < noise_factor:
+                reasons.append(
+                    f"explains {expl[name]:.2f} x the noise variance (< {noise_factor:g})"
+                )
+            if pv[name] >= alpha:
+                reasons.append(
+                    f"not significant over held-out blocks (p = {pv[name]:.3g} >= {alpha:g})"
+                )
+            ok[name] = not reasons
+            why[name] = "; ".join(reasons) if reasons else "qualifies"
+        quals = [n for n in scores if ok[n]]
+        chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
+        steps.append(
+            StepResult(baseline, scores, n_par, pv, gains, expl, ok, why, chosen, new_chains)
+        )
+        if chosen is None:
+            break
+        kept.append(chosen)
+        if isinstance(remaining[chosen], DriftCandidate):
+            drift = True
+        chains = new_chains[chosen]
+        baseline = scores[chosen]
+        name = remaining[chosen].name
+        for k in [k for k, c in remaining.items() if c.name == name]:
+            del remaining[k]
+        # candidates that could not lower the held-out error by even 2 % are not retried
+        for k in [k for k in remaining if gains.get(k, 1.0) < retry_gain]:
+            del remaining[k]
+    return Selection(steps, kept, folds, given, refit_score)
