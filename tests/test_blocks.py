@@ -5,7 +5,7 @@ import copy
 import numpy as np
 import pytest
 from preisach import PreisachModel
-from preisach.blocks import (
+from preisach.daq.blocks import (
     BLOCK_KINDS,
     BlockChain,
     Creep,

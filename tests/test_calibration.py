@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from preisach.calibration import (
+from preisach.daq.calibration import (
     SS15_CHANNEL_A,
     SS15_CHANNEL_B,
     TABLE_B1,

@@ -7,8 +7,8 @@ import time
 
 import numpy as np
 import pytest
-from preisach import PreisachModel, Recording, daq
-from preisach.calibration import SS15_CHANNEL_B
+from preisach import PreisachModel, Recording, _core, daq
+from preisach.daq.calibration import SS15_CHANNEL_B
 from preisach.errors import DeviceError, TrialInterrupted
 
 TS = 1e-3
@@ -328,7 +328,7 @@ def _dac_code(u):
 
 def test_comedi_protocol_replays_through_a_trial(tmp_path):
     protocol = COMEDI_PROTOCOL.format(code0=_dac_code(10.0), code1=_dac_code(20.0))
-    dev = daq._core.ComediDevice.replay(
+    dev = _core.ComediDevice.replay(
         protocol, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
     )
     assert dev.description == "comedi /dev/comedi0 (pci-multiq)"
@@ -352,7 +352,7 @@ def test_comedi_protocol_replays_through_a_trial(tmp_path):
         match=r"step 11: expected 'find_range 0 1 -10 10', got "
         r"'find_range 0 1 -5 5'",
     ):
-        daq._core.ComediDevice.replay(
+        _core.ComediDevice.replay(
             bad, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
         )
 
@@ -363,7 +363,7 @@ def test_comedi_missing_device_names_the_file():
     assert isinstance(info.value, OSError)
     msg = "^cannot open Comedi device '/dev/comedi3': No such file"
     with pytest.raises(DeviceError, match=msg):
-        daq._core.ComediDevice.replay(
+        _core.ComediDevice.replay(
             "open /dev/comedi3 -> -1 : No such file or directory",
             "/dev/comedi3",
             [daq.ss15_output_channel()],
@@ -416,7 +416,7 @@ def test_comedi_close_ramps_the_actuator_to_zero():
         + "".join(f"data_write 1 1 0 0 {c} -> 0\n" for c in ramp)
         + "close ->\n"
     )
-    dev = daq._core.ComediDevice.replay(
+    dev = _core.ComediDevice.replay(
         protocol, "/dev/comedi0", [daq.ss15_output_channel()], [daq.ss15_input_channel()]
     )
     assert (dev.close_ramp_rate, dev.close_ramp_period) == (500.0, 1e-3)
@@ -432,7 +432,7 @@ def test_comedi_close_ramps_the_actuator_to_zero():
     assert np.max(np.abs(np.diff(u))) <= 0.5 + 14.12 / 204.75  # 0.5 V/ms (+ 1 code rounding)
     assert written[-1] == _connector_code(0.0)  # ... to 0 V at the connector
     with pytest.raises(ValueError, match="close_ramp_rate"):
-        daq._core.ComediDevice.replay(
+        _core.ComediDevice.replay(
             COMEDI_SETUP,
             "/dev/comedi0",
             [daq.ss15_output_channel()],

@@ -8,7 +8,7 @@ import numpy as np
 import preisach._core as core
 import pytest
 from preisach import PreisachModel
-from preisach.blocks import make_block
+from preisach.daq.blocks import make_block
 from preisach.diagnose import (
     EFFECT_TYPES,
     FirstOrderInputLag,
@@ -136,7 +136,7 @@ def test_level_dependent_gain_inverse_and_slope():
 
 
 def test_output_feedback_matches_the_rigs_moving_stage():
-    from preisach.blocks import BlockChain, preisach_stage
+    from preisach.daq.blocks import BlockChain, preisach_stage
 
     m = PreisachModel.builtin("ss15-1hz", levels=41)
     u = 90 * np.sin(np.linspace(0, 12, 3000)) - 5

@@ -47,3 +47,19 @@ def test_unknown_attribute_is_an_attribute_error():
 
     with pytest.raises(AttributeError, match="no_such_name"):
         _ = preisach.no_such_name
+
+
+def test_rig_blocks_and_diagnosis_blocks_satisfy_the_one_block_interface():
+    import numpy as np
+    from preisach.daq.blocks import BLOCK_KINDS, make_block
+    from preisach.diagnose import FirstOrderInputLag
+    from preisach.types import Block
+
+    rig = [make_block({"kind": kind}, 1e-3) for kind in BLOCK_KINDS]
+    effect = FirstOrderInputLag(1e-3, tau=2e-3)
+    for block in [*rig, effect]:
+        assert isinstance(block, Block), type(block).__name__
+        y0 = block.reset(0.0)
+        assert block.step(0.0) == pytest.approx(y0)  # the steady state for a constant input
+        assert block.run(np.zeros(3)).shape == (3,)
+    assert not isinstance(object(), Block)

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
-from ..calibration import SS15_CHANNEL_B
+from ..daq.calibration import SS15_INPUT_GAIN
 from ..model import BUILTIN_MODELS, PreisachModel, Slopes, State
 
 __all__ = [
@@ -37,10 +37,6 @@ __all__ = [
     "ss15_plants",
     "thesis_sample_time",
 ]
-
-#: Model-input volts per DAQ volt of the SS15 drive chain: ``|gain|`` of Eq B.2
-#: (``V_in = -14.12 V_bin - 0.02``); the thesis's Simulink model compensates the sign.
-SS15_INPUT_GAIN: float = abs(SS15_CHANNEL_B.gain)
 
 
 def thesis_sample_time(frequency: float) -> float:

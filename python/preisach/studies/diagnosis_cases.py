@@ -909,7 +909,7 @@ class _RigTruth:
 
     def simulate(self, u: Array, strength: float, index: int) -> Array:
         """Clean plant output (V): the rig's block chain without the DAQ."""
-        from ..blocks import BlockChain, make_block, preisach_stage
+        from ..daq.blocks import BlockChain, make_block, preisach_stage
 
         ins, outs, g = self.blocks(strength, index)
         uf, dtf = self._fine(u)

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from .. import daq
-from ..calibration import SS15_CHANNEL_A, SS15_CHANNEL_B, LinearCalibration
+from ..daq.calibration import SS15_CHANNEL_A, SS15_CHANNEL_B, SS15_INPUT_GAIN, LinearCalibration
 from ..errors import TrialFileError
 
 if sys.version_info >= (3, 11):  # pragma: no cover - version dependent
@@ -24,9 +24,6 @@ if sys.version_info >= (3, 11):  # pragma: no cover - version dependent
 else:  # pragma: no cover
     import tomli as tomllib
 
-#: Actuator volts per DAQ volt of the SS15 drive (|gain| of Eq B.2), the thesis's unit of the
-#: noise amplitude and the PI gains.
-SS15_INPUT_GAIN = abs(SS15_CHANNEL_B.gain)
 #: The SA11 amplifier's output range (thesis section 3.1).
 AMPLIFIER_LIMIT = 135.0
 
@@ -400,7 +397,7 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> _Draft:
             )
         if dev["adc_noise"] < 0:
             errors.add("[device]", f"adc_noise must be >= 0 V, got {dev['adc_noise']!r}")
-        from ..blocks import make_block
+        from ..daq.blocks import make_block
 
         for side in ("input_blocks", "output_blocks"):
             for i, spec in enumerate(dev[side]):

@@ -31,7 +31,9 @@ block                  side    physics (see each class for the model and its par
 =====================  ======  =============================================================
 
 :func:`make_block` builds a block from a ``{"kind": ..., **params}`` mapping (the form used in
-trial files).
+trial files).  Every block here derives from the C++ base :data:`RigBlock` and satisfies the
+package's one block interface, :class:`preisach.types.Block` (``reset``/``step``/``run``), as
+diagnosis's effect blocks do.  This module mirrors ``cpp/include/preisach/blocks/``.
 """
 
 from __future__ import annotations
@@ -39,10 +41,11 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from . import _core
-from .model import PreisachModel, State
+from .. import _core
+from ..model import PreisachModel, State
 
-Block = _core.Block
+#: C++ base class of the rig's blocks (the virtual rig accepts only these).
+RigBlock = _core.Block
 BlockChain = _core.BlockChain
 StructuralMode = _core.StructuralMode
 InputLag = _core.InputLag
@@ -54,7 +57,7 @@ PreisachStage = _core.PreisachStage
 
 __all__ = [
     "BLOCK_KINDS",
-    "Block",
+    "RigBlock",
     "BlockChain",
     "Creep",
     "Delay",
@@ -80,7 +83,7 @@ BLOCK_KINDS: dict[str, tuple[type, dict[str, Any]]] = {
 _INT_PARAMS = {"samples", "length", "seed"}
 
 
-def make_block(spec: Mapping[str, Any], dt: float) -> Block:
+def make_block(spec: Mapping[str, Any], dt: float) -> RigBlock:
     """Build a block from ``{"kind": name, **params}``.
 
     Parameters
@@ -93,7 +96,7 @@ def make_block(spec: Mapping[str, Any], dt: float) -> Block:
 
     Returns
     -------
-    Block
+    RigBlock
 
     Raises
     ------

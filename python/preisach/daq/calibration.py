@@ -61,6 +61,7 @@ __all__ = [
     "LinearCalibration",
     "SS15_CHANNEL_A",
     "SS15_CHANNEL_B",
+    "SS15_INPUT_GAIN",
     "TABLE_B1",
     "TABLE_B2",
     "fit_linear_calibration",
@@ -398,4 +399,11 @@ SS15_CHANNEL_B = LinearCalibration(
 This channel drives the Flexmorph studied in the thesis.  ``gain``, ``offset`` and
 ``rms_residual`` are the thesis's printed values; ``max_residual`` (not printed) is that of the
 least-squares fit to all 22 rows of :data:`TABLE_B2`, rounded.
+"""
+
+SS15_INPUT_GAIN: float = abs(SS15_CHANNEL_B.gain)
+"""Actuator volts per DAQ volt of the SS15 drive (``|gain|`` of Eq B.2, 14.12 V/V).
+
+The thesis states the noise amplitude and the PI gains in DAQ volts; the experiments and trial
+files multiply them by this gain before they reach the model input.
 """
