@@ -381,7 +381,9 @@ def test_batch_equals_sequential_and_thread_counts_agree(ss15):
         m.anhysteretic_state(),
         m.state_from_extrema([50, -50]),
     ]
-    Y1, f1 = m.simulate_batch(U, states, threads=1)
+    batch = m.simulate_batch(U, states, threads=1)
+    Y1, f1 = batch  # unpacks like the pair it always was
+    assert batch.output is Y1 and batch.final_states is f1
     Y2, f2 = m.simulate_batch(U, states, threads=2)
     np.testing.assert_array_equal(Y1, Y2)
     assert f1 == f2

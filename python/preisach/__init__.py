@@ -33,6 +33,7 @@ if TYPE_CHECKING:  # the static view of the lazy names below
     from .diagnose import AugmentedModel, DiagnosisReport, diagnose, load_model
     from .model import (
         BUILTIN_MODELS,
+        BatchResult,
         PreisachModel,
         SimulationResult,
         Slopes,
@@ -50,6 +51,7 @@ _LAZY: dict[str, str] = {
     "diagnose": ".diagnose",
     "load_model": ".diagnose",
     "BUILTIN_MODELS": ".model",
+    "BatchResult": ".model",
     "PreisachModel": ".model",
     "SimulationResult": ".model",
     "Slopes": ".model",
@@ -66,6 +68,7 @@ _LAZY: dict[str, str] = {
 __all__ = [
     "AugmentedModel",
     "BUILTIN_MODELS",
+    "BatchResult",
     "DiagnosisReport",
     "diagnose",
     "load_model",

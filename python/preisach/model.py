@@ -35,6 +35,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = [
     "BUILTIN_MODELS",
+    "BatchResult",
     "PreisachModel",
     "SimulationResult",
     "Slopes",
@@ -112,6 +113,24 @@ class Slopes(NamedTuple):
     def interval(self) -> tuple[float, float]:
         """Subderivative interval at a reversal (Eq A.31): ``(min, max)`` of the two slopes."""
         return (min(self.rising, self.falling), max(self.rising, self.falling))
+
+
+class BatchResult(NamedTuple):
+    """Outputs and final states of :meth:`PreisachModel.simulate_batch`.
+
+    Unpacks like a pair: ``y, final_states = model.simulate_batch(u)``.
+
+    Attributes
+    ----------
+    output : ndarray, shape (runs, n)
+        Outputs (V); row ``r`` equals ``simulate(u[r], states[r]).output``.
+    final_states : list of State
+        The state after the last sample of each run.
+
+    """
+
+    output: NDArray[np.float64]
+    final_states: list[State]
 
 
 @dataclass
@@ -577,7 +596,7 @@ class PreisachModel:
         *,
         threads: int = 0,
         out_of_range: str | None = None,
-    ) -> tuple[NDArray[np.float64], list[State]]:
+    ) -> BatchResult:
         """Simulate many runs at once on all cores (the GIL is released).
 
         Parameters
@@ -596,9 +615,10 @@ class PreisachModel:
 
         Returns
         -------
-        y : ndarray, shape (runs, n)
-            Outputs (V); row ``r`` equals ``simulate(u[r], states[r]).output``.
-        final_states : list of State
+        BatchResult
+            ``output`` (ndarray, shape (runs, n), V; row ``r`` equals
+            ``simulate(u[r], states[r]).output``) and ``final_states`` (list of State);
+            unpacks as ``y, final_states``.
 
         Raises
         ------
@@ -638,7 +658,7 @@ class PreisachModel:
         if threads < 0:
             raise ValueError(f"threads: must be >= 0, got {threads}")
         y, finals = _core.simulate_batch(self._table, uu, st, self._policy(out_of_range), threads)
-        return y, list(finals)
+        return BatchResult(y, list(finals))
 
     # ------------------------------------------------------------------ persistence
     def save(self, path: PathLike) -> None:

@@ -52,7 +52,16 @@ class DevicePlant:
     safety : SafetyLimits, optional
         Limits of every run.
 
+    Attributes
+    ----------
+    is_device : bool
+        ``True``: the plant is a DAQ device (a real or virtual rig), so the experiments use the
+        thesis's experimental landing windows on it (Table 4.1).
+
     """
+
+    #: Marks a DAQ device for the experiments (they do not import this layer's classes).
+    is_device: bool = True
 
     def __init__(
         self,

@@ -2,7 +2,7 @@
 
 * :mod:`~preisach.experiments.plant` - the :class:`Plant` interface and the model-backed
   :class:`ModelPlant` (the DAQ layer provides a rig-backed plant with the same methods);
-* :mod:`~preisach.experiments.waveforms` - inputs that drive a plant to psi_n, psi_a, psi_d
+* :mod:`~preisach.experiments.initialisation` - inputs that drive a plant to psi_n, psi_a, psi_d
   (Eq 4.1-4.4) and :func:`drive_to_state`, which finds their offsets;
 * :mod:`~preisach.experiments.protocol` - timing, noise and the metrics (drift, ``n_c``);
 * :mod:`~preisach.experiments.drift` - the open-loop drift test (§4.2);
@@ -25,17 +25,7 @@ from __future__ import annotations
 
 from .closed_loop import ClosedLoopResult, closed_loop_test, closed_loop_trials
 from .drift import DriftResult, drift_test, drift_trials
-from .plant import SS15_INPUT_GAIN, ModelPlant, PIConfig, Plant, ss15_plants, thesis_sample_time
-from .protocol import (
-    THESIS_GAINS,
-    ClosedLoopProtocol,
-    DriftProtocol,
-    control_effort,
-    differential_drift,
-    trial_noise,
-)
-from .sweep import EXPERIMENTS, SweepResult, regulation_sweep, state_slopes
-from .waveforms import (
+from .initialisation import (
     HOLD_BAND,
     HOLD_DURATION,
     KINDS,
@@ -52,6 +42,16 @@ from .waveforms import (
     measure_locus,
     neutral_input,
 )
+from .plant import SS15_INPUT_GAIN, ModelPlant, PIConfig, Plant, ss15_plants, thesis_sample_time
+from .protocol import (
+    THESIS_GAINS,
+    ClosedLoopProtocol,
+    DriftProtocol,
+    control_effort,
+    differential_drift,
+    trial_noise,
+)
+from .sweep import EXPERIMENTS, SweepResult, regulation_sweep, state_slopes
 
 __all__ = [
     "EXPERIMENTS",

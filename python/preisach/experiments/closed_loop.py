@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from .initialisation import Initialisation
 from .plant import Plant
-from .protocol import ClosedLoopProtocol, TrialResult, control_effort, window_mean
-from .waveforms import Initialisation
+from .protocol import ClosedLoopProtocol, ExperimentResult, control_effort, window_mean
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -29,13 +29,13 @@ __all__ = ["ClosedLoopResult", "closed_loop_test", "closed_loop_trials"]
 
 
 @dataclass
-class ClosedLoopResult(TrialResult):
+class ClosedLoopResult(ExperimentResult):
     """One closed-loop trial.
 
     Attributes
     ----------
     kind, frequency, gain, seed, sample_time, offset
-        As in :class:`~preisach.experiments.protocol.TrialResult`.
+        As in :class:`~preisach.experiments.protocol.ExperimentResult`.
     setpoint : float
         ``y_d`` (V).
     nc : float

@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from .initialisation import Initialisation
 from .plant import Plant
-from .protocol import DriftProtocol, TrialResult, differential_drift
-from .waveforms import Initialisation
+from .protocol import DriftProtocol, ExperimentResult, differential_drift
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -26,10 +26,10 @@ __all__ = ["DriftResult", "drift_test", "drift_trials"]
 
 
 @dataclass
-class DriftResult(TrialResult):
+class DriftResult(ExperimentResult):
     """One open-loop drift trial.
 
-    The fields of :class:`~preisach.experiments.protocol.TrialResult` (state, frequency, gain,
+    The fields of :class:`~preisach.experiments.protocol.ExperimentResult` (state, frequency, gain,
     seed, sample time, offset), and:
 
     Attributes

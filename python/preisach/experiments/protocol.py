@@ -39,6 +39,7 @@ __all__ = [
     "THESIS_GAINS",
     "ClosedLoopProtocol",
     "DriftProtocol",
+    "ExperimentResult",
     "control_effort",
     "differential_drift",
     "trial_noise",
@@ -160,8 +161,8 @@ def _check_common(obj: Any) -> None:
 
 
 @dataclass
-class TrialResult:
-    """What every trial result has (the base of the drift and closed-loop results).
+class ExperimentResult:
+    """What every regulation experiment's result has (base of the drift and closed-loop results).
 
     Attributes
     ----------

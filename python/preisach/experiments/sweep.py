@@ -26,9 +26,9 @@ from ..model import PreisachModel, State
 from ..neutral import neutral_locus
 from .closed_loop import ClosedLoopResult, closed_loop_trials
 from .drift import DriftResult, drift_trials
+from .initialisation import KINDS, Initialisation, drive_to_state
 from .plant import ModelPlant, Plant, ss15_plants, thesis_sample_time
 from .protocol import THESIS_GAINS, ClosedLoopProtocol, DriftProtocol
-from .waveforms import KINDS, Initialisation, drive_to_state
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

@@ -140,7 +140,7 @@ def _drive_waveform(
     plan: TrialPlan, step: PlannedStep
 ) -> tuple[NDArray[np.float64], dict[str, Any]]:
     from ..experiments import ModelPlant, drive_to_state
-    from ..experiments.waveforms import branch_input, neutral_input
+    from ..experiments.initialisation import branch_input, neutral_input
 
     p = step.params
     ts = plan.sample_time

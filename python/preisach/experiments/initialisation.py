@@ -40,8 +40,9 @@ dynamics (the classical model, the virtual rig without blocks) stays where it la
 psi_a/psi_d reached with the Table 4.1 windows fail the check there - use
 ``thresholds="simulation"`` for such plants.
 
-Every waveform carries its time base (:attr:`Waveform.time`) so it can be played on a DAQ
-device as it is.
+Every waveform is an :class:`~preisach.waveforms.InputSignal` (the package's one sampled-input
+type) and carries its time base (:attr:`Waveform.time`, relative to ``t_1``) so it can be
+played on a DAQ device as it is.
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ from numpy.typing import NDArray
 from ..errors import ConvergenceError, PreisachError, PreisachWarning
 from ..model import State
 from ..neutral import NeutralLocus, neutral_locus
+from ..waveforms import InputSignal
 from .plant import Plant
 
 __all__ = [
@@ -112,9 +114,8 @@ class HoldWindowError(PreisachError, ValueError):
 
 
 def _is_device(plant: object) -> bool:
-    from ..daq import DevicePlant  # the DAQ layer does not import the experiments
-
-    return isinstance(plant, DevicePlant)
+    """Whether ``plant`` is a DAQ device: it says so with ``is_device = True``."""
+    return getattr(plant, "is_device", False) is True
 
 
 def default_thresholds(plant: Plant) -> str:
@@ -128,9 +129,10 @@ def default_thresholds(plant: Plant) -> str:
     Returns
     -------
     str
-        ``"experiment"`` (Table 4.1) for a DAQ device plant (:class:`preisach.daq.DevicePlant`:
-        a real or virtual rig, whether or not it carries a model for the neutral locus);
-        ``"simulation"`` (``y_d +/- 0.03`` V) for every other plant.
+        ``"experiment"`` (Table 4.1) for a DAQ device plant, one with ``is_device = True``
+        (:class:`preisach.daq.DevicePlant`: a real or virtual rig, whether or not it carries a
+        model for the neutral locus); ``"simulation"`` (``y_d +/- 0.03`` V) for every other
+        plant.
 
     """
     return "experiment" if _is_device(plant) else "simulation"
@@ -192,21 +194,20 @@ def landing_window(
     return (y_d - tol, y_d + tol)
 
 
-@dataclass(frozen=True)
-class Waveform:
-    """An initialisation input, sampled for a plant.
+@dataclass
+class Waveform(InputSignal):
+    """An initialisation input (psi_n, psi_a or psi_d), sampled for a plant.
 
-    Samples are at ``t_0 + k * sample_time`` for ``k = 0 .. len(input) - 1``; ``t_1`` (when the
-    state is reached and the offset starts to be held) is the sample after the last one.
+    A :class:`~preisach.waveforms.InputSignal` (the package's one sampled-input type: ``t`` in
+    s from 0, ``u`` in V, ``sample_time``, ``name`` ``"psi_n"``/``"psi_a"``/``"psi_d"``) with
+    the initialisation's parameters.  Samples are at ``t_0 + k * sample_time`` for
+    ``k = 0 .. len(u) - 1``; ``t_1`` (when the state is reached and the offset starts to be
+    held) is the sample after the last one.
 
     Attributes
     ----------
     kind : str
         ``"n"``, ``"a"`` or ``"d"``.
-    input : ndarray
-        Input samples (V).
-    sample_time : float
-        Sampling period (s).
     offset : float
         The value held from ``t_1`` on (V): ``l`` for psi_n, ``u_bar`` for psi_a/psi_d.
     frequency : float
@@ -216,27 +217,54 @@ class Waveform:
 
     """
 
-    kind: str
-    input: NDArray[np.float64]
-    sample_time: float
-    offset: float
-    frequency: float
-    u_hat: float
+    kind: str = "n"
+    offset: float = 0.0
+    frequency: float = float("nan")
+    u_hat: float = float("nan")
+
+    @classmethod
+    def sampled(
+        cls,
+        kind: str,
+        u: NDArray[np.float64],
+        sample_time: float,
+        offset: float,
+        frequency: float,
+        u_hat: float,
+    ) -> Waveform:
+        """Build the waveform of ``kind`` from input samples ``u`` (V) every ``sample_time`` s."""
+        u = np.asarray(u, dtype=np.float64)
+        return cls(
+            t=np.arange(u.size, dtype=np.float64) * float(sample_time),
+            u=u,
+            sample_time=float(sample_time),
+            name=f"psi_{kind}",
+            params={"offset": offset, "frequency": frequency, "u_hat": u_hat},
+            kind=kind,
+            offset=offset,
+            frequency=frequency,
+            u_hat=u_hat,
+        )
+
+    @property
+    def input(self) -> NDArray[np.float64]:
+        """Input samples (V), the same array as ``u``."""
+        return self.u
 
     @property
     def duration(self) -> float:
-        """``t_1 - t_0`` (s)."""
-        return len(self.input) * self.sample_time
+        """``t_1 - t_0`` (s): the samples' span plus the one sample to ``t_1``."""
+        return len(self.u) * self.sample_time
 
     @property
     def time(self) -> NDArray[np.float64]:
         """Sample times (s) relative to ``t_1`` (all negative; the first is ``t_0 - t_1``)."""
-        n = len(self.input)
+        n = len(self.u)
         return np.asarray((np.arange(n) - n) * self.sample_time, dtype=np.float64)
 
     def with_hold(self) -> NDArray[np.float64]:
         """Return the input followed by one sample of the offset (the input up to ``t_1``)."""
-        return np.append(self.input, self.offset)
+        return np.append(self.u, self.offset)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly description (parameters, not samples)."""
@@ -247,7 +275,7 @@ class Waveform:
             "sample_time": self.sample_time,
             "u_hat": self.u_hat,
             "duration": self.duration,
-            "samples": len(self.input),
+            "samples": len(self.u),
         }
 
 
@@ -311,7 +339,7 @@ def neutral_input(
     duration = cyc / f
     t = _samples(duration, ts)
     u = (duration - t) / duration * amp * np.sin(2 * np.pi * f * t + np.pi / 2) + l
-    return Waveform("n", u, ts, l, f, abs(top))
+    return Waveform.sampled("n", u, ts, l, f, abs(top))
 
 
 def branch_input(
@@ -371,7 +399,7 @@ def branch_input(
         u = mid + half * np.sin(ph)
         second = t >= 1.0 / f
         u[second] = 0.5 * (hi - ub) * np.sin(ph[second]) + 0.5 * (hi + ub)
-    return Waveform(k, u, ts, ub, f, max(abs(lo), abs(hi)))
+    return Waveform.sampled(k, u, ts, ub, f, max(abs(lo), abs(hi)))
 
 
 @dataclass
