@@ -32,6 +32,8 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
+from preisach._progress import progress_bar
+
 
 def run_case(job: dict[str, Any]) -> dict[str, Any]:
     """One randomised case: effect size and noise level drawn from the case's seed."""
@@ -89,6 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed0", type=int, default=1000)
     ap.add_argument("--json", default="", help="write every case's result here")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     a = ap.parse_args(argv)
     kinds = a.kinds.split(",")
     jobs = [
@@ -108,16 +111,13 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     results: list[dict[str, Any]] = [{} for _ in jobs]
+    bar = progress_bar(len(jobs), "diagnosis study", enabled=not a.quiet, unit="case", delay=0)
 
     def done(i: int, r: dict[str, Any]) -> None:
         results[i] = r
-        n = sum(bool(x) for x in results)
-        print(
-            f"[{n}/{len(jobs)} {time.perf_counter() - t0:5.0f} s] {r['kind']} seed {r['seed']} "
-            f"-> {r['verdict']}",
-            file=sys.stderr,
-            flush=True,
-        )
+        if not a.quiet:
+            bar.write(f"{r['kind']} seed {r['seed']} -> {r['verdict']}", file=sys.stderr)
+        bar.update(1)
 
     if a.workers > 1:
         with ProcessPoolExecutor(a.workers) as ex:
@@ -127,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         for i, j in enumerate(jobs):
             done(i, run_case(j))
+    bar.close()
     wall = time.perf_counter() - t0
     labels = list(dict.fromkeys(["none", *kinds, *[r["verdict"] for r in results]]))
     print(

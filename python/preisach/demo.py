@@ -44,27 +44,36 @@ __all__ = ["add_parser", "run_demo"]
 _STAGES = 5
 
 
-class _Progress:
-    """One line per stage: ``[k/5] title ... detail (t s)``, flushed as it goes."""
+class _Stages:
+    """The demo's stages: a progress bar over them (stderr) and one result line per stage.
 
-    def __init__(self, stream: Any = None) -> None:
+    The line ``[k/5] title ... detail (t s)`` goes to ``stream`` (stdout) when the stage ends.
+    """
+
+    def __init__(self, stream: Any = None, *, progress: bool = True) -> None:
+        from ._progress import progress_bar
+
         self.stream = stream if stream is not None else sys.stdout
+        self.bar = progress_bar(_STAGES, "demo", enabled=progress, unit="stage", delay=0.0)
         self.k = 0
         self.detail = ""
         self.times: dict[str, float] = {}
 
     @contextmanager
-    def stage(self, title: str) -> Iterator[_Progress]:
+    def stage(self, title: str) -> Iterator[_Stages]:
         self.k += 1
         self.detail = ""
-        self.stream.write(f"[{self.k}/{_STAGES}] {title} ...")
-        self.stream.flush()
+        self.bar.set_description_str(f"demo [{self.k}/{_STAGES}] {title.split(':')[0][:40]}")
         t0 = time.perf_counter()
         yield self
         dt = time.perf_counter() - t0
         self.times[title] = dt
-        self.stream.write(f" {self.detail} ({dt:.1f} s)\n" if self.detail else f" ({dt:.1f} s)\n")
+        line = f"[{self.k}/{_STAGES}] {title} ..." + (f" {self.detail}" if self.detail else "")
+        self.bar.write(f"{line} ({dt:.1f} s)", file=self.stream)
         self.stream.flush()
+        self.bar.update(1)
+        if self.k == _STAGES:
+            self.bar.close()
 
 
 def _save(fig: Any, path: Path, dpi: int = 100) -> str:
@@ -143,7 +152,8 @@ def _run_demo(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     print(f"preisach demo {__version__}: the virtual SS15, from identification to diagnosis")
     print(f"output folder: {out.resolve()}")
-    prog = _Progress()
+    prog = _Stages(progress=not getattr(args, "quiet", False))
+    bars = not getattr(args, "quiet", False)  # progress bars of the long calls in the stages
     md: list[str] = []
     key: dict[str, Any] = {}
     truth_model = PreisachModel.builtin("ss15-1hz")
@@ -273,8 +283,8 @@ def _run_demo(args: argparse.Namespace) -> int:
         locus = neutral_locus(m_srf)
         mp = check_mp(m_srf)
         sweep_kw: dict[str, Any] = {"gains": THESIS_GAINS, "seeds": range(seeds), "y_d": 1.0}
-        drift = regulation_sweep("drift", {1.0: m_srf}, **sweep_kw)
-        effort = regulation_sweep("closed-loop", {1.0: m_srf}, **sweep_kw)
+        drift = regulation_sweep("drift", {1.0: m_srf}, **sweep_kw, progress=bars)
+        effort = regulation_sweep("closed-loop", {1.0: m_srf}, **sweep_kw, progress=bars)
         inits = list(drift.states)
         fig_nl = _save(plotting.plot_initial_states(drift), out / "neutral_locus.png")
         fig_dr = _save(plotting.plot_drift_summary(drift), out / "drift.png")
@@ -374,7 +384,7 @@ def _run_demo(args: argparse.Namespace) -> int:
             "structural_resonance", seed=31, scale=0.3, effect_size=3.5, generator="rig"
         )
         base = case.identify()
-        rep = diagnose(base, case.recordings, identification=case.identification)
+        rep = diagnose(base, case.recordings, identification=case.identification, progress=bars)
         rep.to_json(out / "diagnosis.json")
         fig_dg = _save(plotting.plot_diagnosis(rep), out / "diagnosis.png", dpi=75)
         fig_rm = _save(
@@ -492,5 +502,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="noise seeds per state and gain in the regulation sweeps (default: %(default)s; "
         "the thesis-scale study uses 20)",
     )
+    d.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     d.set_defaults(func=run_demo)
     return d

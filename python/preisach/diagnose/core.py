@@ -12,6 +12,7 @@ from typing import Any, Callable, TypeVar, Union, cast
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from .._progress import line_progress
 from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
@@ -122,7 +123,7 @@ def diagnose(
     max_effects: int = 3,
     sigma: float | None = None,
     max_delay: float | None = None,
-    progress: Callable[[str], None] | None = None,
+    progress: bool | Callable[[str], None] | None = True,
 ) -> DiagnosisReport:
     """Find where a model and recordings disagree, name the missing physics and model it.
 
@@ -190,8 +191,9 @@ def diagnose(
         Noise standard deviation (V) when known; default estimated from the data.
     max_delay : float, optional
         Largest delay (s) the ``delay`` candidate may take; default max(50 ms, 10 samples).
-    progress : callable, optional
-        Called with progress lines (e.g. ``print``).
+    progress : bool or callable
+        ``True`` (default): a progress bar over the stages and candidate fits; ``False``:
+        nothing; a callable gets every progress line (e.g. ``print``).
 
     Returns
     -------
@@ -229,6 +231,7 @@ def diagnose(
     if len({c.key for c in cands}) != len(cands):
         raise ValueError("candidates: each candidate may appear only once")
     do_refit = bool(ident_in) if refit is None else bool(refit)
+    progress, bar = line_progress(progress, "diagnose", unit="step")
 
     recs = prepare_recordings(
         model,
@@ -445,4 +448,5 @@ def diagnose(
     )
     if progress:
         progress(f"verdict: {report.verdict} ({report.seconds:.1f} s)")
+    bar.close()
     return report

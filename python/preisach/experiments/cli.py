@@ -151,6 +151,7 @@ def _run_sweep(args: argparse.Namespace) -> int:
         y_d=args.y_d,
         protocol=proto,
         init_options=init_opts,
+        progress=not args.quiet,
     )
     data = res.to_dict()
     data["models"] = {f"{f:g}": spec for f, _, spec in models}
@@ -315,6 +316,7 @@ def _sweep_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--csv", metavar="CSV", help="also write the tidy table (one row per trial) as CSV"
     )
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._io import write_text
+from .._progress import progress_bar
 from ..model import PreisachModel, State
 from ..neutral import neutral_locus
 from .closed_loop import ClosedLoopResult, closed_loop_trials
@@ -483,6 +484,7 @@ def regulation_sweep(
     init_options: Mapping[str, Any] | None = None,
     trace: tuple[float, int | None] | None = (1.6, None),
     slope_gain: float = 1.6,
+    progress: bool = True,
 ) -> SweepResult:
     """Run the drift or closed-loop experiment over frequencies, states, gains and seeds.
 
@@ -511,6 +513,8 @@ def regulation_sweep(
         first seed.  Default: ``K_n = 1.6`` as in Figs 4.9-4.11 and 5.2-5.4.
     slope_gain : float
         ``K_n`` whose noise peak is the finite excursion of :func:`state_slopes`.
+    progress : bool
+        Show a progress bar over the trials (``False``: nothing).
 
     Returns
     -------
@@ -549,6 +553,8 @@ def regulation_sweep(
     infos: list[dict[str, Any]] = []
     traces: dict[tuple[float, str], DriftResult | ClosedLoopResult] = {}
     models: dict[float, PreisachModel] = {}
+    n_trials = len(pl) * len(kinds) * len(gain_list) * len(seed_list)
+    bar = progress_bar(n_trials, f"{experiment} sweep", enabled=progress, unit="trial")
     for f in sorted(pl):
         plant = pl[f]
         model = getattr(plant, "model", None)
@@ -589,6 +595,8 @@ def regulation_sweep(
                     rows.append(row)
                     if keep and res.seed == tr_seed:
                         traces[(f, k)] = res
+                bar.update(len(results))
+    bar.close()
     config = {
         "experiment": experiment,
         "y_d": y_d,

@@ -597,6 +597,7 @@ def identify_lsq(
     nonnegative: bool = True,
     u_range: tuple[float, float] | None = None,
     name: str = "",
+    progress: bool = True,
 ) -> IdentificationReport:
     """Least-squares identification of the Everett table from arbitrary recordings.
 
@@ -628,6 +629,8 @@ def identify_lsq(
         Input range (V) of the table; default the recordings' input range.
     name : str
         Name of the model.
+    progress : bool
+        Show a progress bar over the cross-validation fits (``False``: nothing).
 
     Returns
     -------
@@ -665,6 +668,7 @@ def identify_lsq(
         delay=delay,
         nonnegative=nonnegative,
         names=names,
+        progress=progress,
     )
     model = PreisachModel.from_weights(lv, weights_matrix(lv, w), y_min=y_min, name=name)
     model.metadata = {

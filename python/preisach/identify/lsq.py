@@ -61,6 +61,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from threadpoolctl import threadpool_limits
 
 from .. import _core
+from .._progress import progress_bar
 from ..initial_state import InitialState, burn_in_end, check_policy, initial_state_for
 
 __all__ = [
@@ -535,10 +536,12 @@ def identify_lsq_core(
     delay: int,
     nonnegative: bool,
     names: Sequence[str],
+    progress: bool = False,
 ) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
     """Cell masses, y_min and the details of a least-squares identification (no model built).
 
     Returns ``(w (cells, V), y_min (V), details, usage, warnings)``; see :func:`identify_lsq`.
+    ``progress`` shows a bar over the cross-validation fits.
     """
     if levels.size > MAX_LEVELS:
         raise ValueError(
@@ -559,12 +562,16 @@ def identify_lsq_core(
     if isinstance(delay, bool) or int(delay) != delay or delay < 0:
         raise ValueError(f"delay: need an integer number of samples >= 0, got {delay!r}")
     delay = int(delay)
-    prep = _prepare(recordings, levels, folds, initial_state, delay, names)
-    # The solves below are many factorisations of at most ~2000 x 2000 matrices: a threaded
-    # BLAS gains little on them, and on a busy machine its spinning threads cost a lot
-    # (measured: 0.67 s single-threaded vs 21.9 s with OpenBLAS threads at load 4 on 2 cores).
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _solve(prep, levels, lam, auto, folds, nonnegative, initial_state, delay)
+    n_fits = 1 + folds * (lam.size + (2 if auto else 0)) + 1  # sums, CV fits, final fit
+    with progress_bar(n_fits, "least squares", enabled=progress, unit="fit", leave=False) as bar:
+        prep = _prepare(recordings, levels, folds, initial_state, delay, names)
+        bar.update(1)
+        # The solves below are many factorisations of at most ~2000 x 2000 matrices: a threaded
+        # BLAS gains little on them, and on a busy machine its spinning threads cost a lot
+        # (measured: 0.67 s single-threaded vs 21.9 s with OpenBLAS threads at load 4 on 2
+        # cores).
+        with threadpool_limits(limits=1, user_api="blas"):
+            return _solve(prep, levels, lam, auto, folds, nonnegative, initial_state, delay, bar)
 
 
 def _solve(
@@ -576,6 +583,7 @@ def _solve(
     nonnegative: bool,
     initial_state: InitialState,
     delay: int,
+    bar: Any,
 ) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
     """Cross-validate the smoothness weight and fit (the body of :func:`identify_lsq_core`)."""
     R = roughness_matrix(levels)
@@ -609,6 +617,7 @@ def _solve(
                 frees.append(fr)
                 Gk, bk = prep.gram[k], prep.rhs[k]
                 row[k] = max(float(theta @ (Gk @ theta) - 2.0 * theta @ bk + prep.yy[k]), 0.0)
+                bar.update(1)
             sse[lv] = row
             free_sets[lv] = frees
 
@@ -627,6 +636,7 @@ def _solve(
         _reduce(Gtot, btot), Ps, float(lam[best]), nonnegative, free_sets[float(lam[best])][0]
     )
     t2 = time.perf_counter()
+    bar.update(bar.total - bar.n)  # a refinement value already tried was not refitted
     warnings = list(prep.warnings)
     if not ok:
         warnings.append(

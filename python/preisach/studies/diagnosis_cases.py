@@ -580,6 +580,7 @@ def run_case(
         identification=case.identification,
         cv=cv,
         max_effects=max_effects,
+        progress=False,  # a study runs many cases, each in its own process: it shows its own bar
     )
     first = rep.effects[0] if rep.effects else None
     step1 = [c for c in rep.candidates if c["step"] == 1]

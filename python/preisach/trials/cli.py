@@ -7,6 +7,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from .._progress import progress_bar
 from ..errors import TrialInterrupted
 from .plan import check_trial, step_waveform
 from .run import TrialOutcome, run_trial_file
@@ -17,42 +18,32 @@ from .schema import PlannedStep
 # command line
 # ------------------------------------------------------------------------------------------
 class _ProgressBar:
-    """A text progress bar on stderr (carriage returns on a terminal, lines otherwise)."""
+    """One progress bar per trial step (:func:`preisach._progress.progress_bar`, on stderr).
+
+    Called as ``bar(done, planned, step, number, total)`` by :func:`run_trial_file`; redrawn in
+    place on a terminal, plain lines in a log; ``close()`` ends the current step's bar.
+    """
 
     def __init__(self, stream: Any = None) -> None:
-        self.stream = stream if stream is not None else sys.stderr
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
-        self.last: tuple[int, int] = (-1, -1)
-        self._open = False  # a terminal line without its newline yet
+        self.stream = stream
+        self.number = -1
+        self.bar: Any = None
 
     def close(self) -> None:
-        """End a pending terminal line (a step that stopped before 100 %)."""
-        if self._open:
-            self.stream.write("\n")
-            self.stream.flush()
-            self._open = False
+        """End the current step's bar (also one that stopped before 100 %)."""
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
     def __call__(self, done: int, planned: int, step: PlannedStep, number: int, total: int) -> None:
-        frac = done / planned if planned else 1.0
-        width = 30
-        bar = "#" * int(frac * width) + "-" * (width - int(frac * width))
-        text = (
-            f"step {number}/{total} {step.name:<12} [{bar}] {100 * frac:5.1f}% "
-            f"{done}/{planned} samples"
-        )
-        if self.tty:
-            if self._open and number != self.last[0]:
-                self.stream.write("\n")  # the previous step stopped short of 100 %
-            self.last = (number, -1)
-            self._open = done < planned
-            self.stream.write("\r" + text + ("" if self._open else "\n"))
-            self.stream.flush()
-        else:
-            quarter = int(frac * 4)
-            if (number, quarter) != self.last:
-                self.last = (number, quarter)
-                self.stream.write(text + "\n")
-                self.stream.flush()
+        if number != self.number:
+            self.close()
+            self.number = number
+            self.bar = progress_bar(
+                planned, f"step {number}/{total} {step.name}", unit="sample", file=self.stream,
+                delay=0.0,
+            )  # fmt: skip
+        self.bar.update(done - self.bar.n)
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
