@@ -181,7 +181,7 @@ class SimulationResult:
 
     def plot(self, *, fig: Figure | None = None) -> Figure:
         """Plot input and output against time, and the input-output loop; returns the figure."""
-        from .plotting import plot_simulation
+        from .plotting.model import plot_simulation
 
         return plot_simulation(self, fig=fig)
 

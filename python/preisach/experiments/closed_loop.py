@@ -66,27 +66,13 @@ class ClosedLoopResult(ExperimentResult):
     control: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def plot(self, *, fig: Figure | None = None) -> Figure:
-        """Output, controller output and input against time after ``t_1``."""
-        from matplotlib.figure import Figure
+        """Output, controller output and input against time after ``t_1``.
 
-        t = self.time
-        fig = Figure(figsize=(8.0, 6.5)) if fig is None else fig
-        ax_y, ax_c, ax_u = fig.subplots(3, 1, sharex=True)
-        ax_y.plot(t, self.output, lw=0.8)
-        ax_y.axhline(self.setpoint, color="k", ls=":", lw=0.8, label="y_d")
-        ax_y.set_ylabel("output y (V)")
-        ax_y.legend(fontsize="small")
-        ax_c.plot(t, self.control, lw=0.7, color="C1")
-        ax_c.axhline(self.uc_baseline, color="k", ls=":", lw=0.8)
-        ax_c.set_ylabel("controller u_c (DAQ V)")
-        ax_u.plot(t, self.input, lw=0.7, color="C2")
-        ax_u.set_ylabel("input u (V)")
-        ax_u.set_xlabel("time after t1 (s)")
-        ax_y.set_title(
-            f"closed loop from psi_{self.kind}, f = {self.frequency:g} Hz, K_n = "
-            f"{self.gain:g}: n_c = {self.nc:.3f}"
-        )
-        return fig
+        Drawn by :func:`preisach.plotting.plot_closed_loop_trial`.
+        """
+        from ..plotting.experiments import plot_closed_loop_trial
+
+        return plot_closed_loop_trial(self, fig=fig)
 
 
 def closed_loop_trials(

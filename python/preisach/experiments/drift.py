@@ -50,25 +50,13 @@ class DriftResult(ExperimentResult):
     output: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def plot(self, *, fig: Figure | None = None) -> Figure:
-        """Input and output against time after ``t_1``, with the averaging windows marked."""
-        from matplotlib.figure import Figure
+        """Input and output against time after ``t_1``, averaging windows marked.
 
-        t = self.time
-        fig = Figure(figsize=(8.0, 5.0)) if fig is None else fig
-        ax_u, ax_y = fig.subplots(2, 1, sharex=True)
-        ax_u.plot(t, self.input, lw=0.7)
-        ax_u.set_ylabel("input u (V)")
-        ax_y.plot(t, self.output, lw=0.8)
-        ax_y.axhline(self.ybar_before, color="C1", ls="--", lw=0.8, label="ybar before")
-        ax_y.axhline(self.ybar_after, color="C2", ls="--", lw=0.8, label="ybar after")
-        ax_y.set_xlabel("time after t1 (s)")
-        ax_y.set_ylabel("output y (V)")
-        ax_y.legend(fontsize="small")
-        ax_u.set_title(
-            f"open-loop drift from psi_{self.kind}, f = {self.frequency:g} Hz, "
-            f"K_n = {self.gain:g}: drift {self.drift:+.4f} V"
-        )
-        return fig
+        Drawn by :func:`preisach.plotting.plot_drift_trial`.
+        """
+        from ..plotting.experiments import plot_drift_trial
+
+        return plot_drift_trial(self, fig=fig)
 
 
 def drift_trials(

@@ -24,7 +24,6 @@ import numpy as np
 from .._io import write_text
 from .._progress import progress_bar
 from ..model import PreisachModel, State
-from ..neutral import neutral_locus
 from .closed_loop import ClosedLoopResult, closed_loop_trials
 from .drift import DriftResult, drift_trials
 from .initialisation import KINDS, Initialisation, drive_to_state
@@ -38,13 +37,7 @@ __all__ = ["EXPERIMENTS", "SweepResult", "regulation_sweep", "state_slopes"]
 
 #: Experiments a sweep can run.
 EXPERIMENTS: tuple[str, ...] = ("drift", "closed-loop")
-_MARKERS = {"n": "o", "a": "^", "d": "v"}
-_COLORS = {"n": "C0", "a": "C3", "d": "C2"}
 _METRIC = {"drift": "drift", "closed-loop": "nc"}
-_LABEL = {
-    "drift": "differential drift ybar(8,10) - ybar(0,2) (V)",
-    "closed-loop": "control effort n_c (DAQ V)",
-}
 
 
 def state_slopes(
@@ -321,138 +314,40 @@ class SweepResult:
 
     # ---------------------------------------------------------------- figures
     def plot(self, *, fig: Figure | None = None) -> Figure:
-        """Plot the metric against noise gain per frequency: Fig 4.12 (drift), Figs 5.5-5.7 (n_c).
+        """Plot the metric against noise gain per frequency: Fig 4.12 or Figs 5.5-5.7.
 
-        Markers are the means over seeds, bars one standard deviation.
+        Drawn by :func:`preisach.plotting.plot_sweep`.
         """
-        from matplotlib.figure import Figure
+        from ..plotting.experiments import plot_sweep
 
-        fs = self.frequencies
-        fig = Figure(figsize=(4.2 * len(fs), 3.8)) if fig is None else fig
-        axes = np.atleast_1d(fig.subplots(1, len(fs), squeeze=False)[0])
-        for ax, f in zip(axes, fs):
-            for j, k in enumerate(self.kinds):
-                gs = np.array(self.gains)
-                st = [_stats(self.values(f, k, g)) for g in gs]
-                mean = np.array([s["mean"] for s in st])
-                sd = np.array([s["std"] for s in st])
-                ax.errorbar(
-                    gs + (j - 1) * 0.06,
-                    mean,
-                    yerr=sd,
-                    fmt=_MARKERS[k],
-                    color=_COLORS[k],
-                    ms=5,
-                    capsize=2,
-                    lw=0.8,
-                    label=f"psi_{k}",
-                )
-            if self.experiment == "drift":
-                ax.axhline(0.0, color="k", lw=0.6)
-            ax.set_title(f"f = {f:g} Hz")
-            ax.set_xlabel("noise gain K_n")
-            ax.grid(True, alpha=0.3)
-        axes[0].set_ylabel(_LABEL[self.experiment])
-        axes[0].legend(fontsize="small")
-        fig.tight_layout()
-        return fig
+        return plot_sweep(self, fig=fig)
 
     def plot_differences(self, *, fig: Figure | None = None) -> Figure:
-        """Paired differences ``metric(psi_x) - metric(psi_n)`` against gain (Figs 5.10-5.12 style).
+        """Paired differences psi_x - psi_n against gain.
 
-        Each trial from psi_a (upward triangles) and psi_d (downward triangles) is compared with
-        the psi_n trial of the same seed (same noise); markers are the means over seeds, bars one
-        standard deviation.  For the drift the magnitudes are compared, ``|drift(psi_x)| -
-        |drift(psi_n)|``: positive means psi_n drifted less.
+        Drawn by :func:`preisach.plotting.plot_paired_differences`.
         """
-        from matplotlib.figure import Figure
+        from ..plotting.experiments import plot_paired_differences
 
-        if not {"n", "a", "d"} <= set(self.kinds):
-            raise ValueError("plot_differences: needs the states n, a and d")
-        fs = self.frequencies
-        fig = Figure(figsize=(4.2 * len(fs), 3.8)) if fig is None else fig
-        axes = np.atleast_1d(fig.subplots(1, len(fs), squeeze=False)[0])
-        mag = np.abs if self.experiment == "drift" else (lambda v: v)
-        for ax, f in zip(axes, fs):
-            gs = np.array(self.gains)
-            for j, x in enumerate(("a", "d")):
-                diffs = [mag(self.values(f, x, g)) - mag(self.values(f, "n", g)) for g in gs]
-                mean = np.array([d.mean() for d in diffs])
-                sd = np.array([d.std(ddof=1) if d.size > 1 else np.nan for d in diffs])
-                ax.errorbar(
-                    gs + (j - 0.5) * 0.08,
-                    mean,
-                    yerr=sd,
-                    fmt=_MARKERS[x],
-                    color=_COLORS[x],
-                    ms=5,
-                    capsize=2,
-                    lw=0.8,
-                    label=f"psi_{x} - psi_n",
-                )
-            ax.axhline(0.0, color="k", lw=0.6)
-            ax.set_title(f"f = {f:g} Hz")
-            ax.set_xlabel("noise gain K_n")
-            ax.grid(True, alpha=0.3)
-        axes[0].set_ylabel(
-            "paired difference |drift| (V)"
-            if self.experiment == "drift"
-            else "paired difference of n_c (DAQ V)"
-        )
-        axes[0].legend(fontsize="small")
-        fig.tight_layout()
-        return fig
+        return plot_paired_differences(self, fig=fig)
 
     def plot_traces(self, *, fig: Figure | None = None) -> Figure:
-        """Plot the output from each initial state per frequency (Figs 4.9-4.11, 5.2-5.4)."""
-        from matplotlib.figure import Figure
+        """Output from each initial state per frequency.
 
-        if not self.traces:
-            raise ValueError("this sweep kept no traces (trace=None)")
-        fs = sorted({f for f, _ in self.traces})
-        fig = Figure(figsize=(8.0, 2.6 * len(fs))) if fig is None else fig
-        axes = np.atleast_1d(fig.subplots(len(fs), 1, squeeze=False)[:, 0])
-        for ax, f in zip(axes, fs):
-            gain = None
-            for k in KINDS:
-                tr = self.traces.get((f, k))
-                if tr is None:
-                    continue
-                gain = tr.gain
-                ax.plot(tr.time, tr.output, lw=0.7, color=_COLORS[k], label=f"psi_{k}")
-            ax.set_ylabel("output y (V)")
-            ax.set_title(f"f = {f:g} Hz, K_n = {gain:g}")
-            ax.grid(True, alpha=0.3)
-            ax.legend(fontsize="small", ncol=3)
-        axes[-1].set_xlabel("time after t1 (s)")
-        fig.tight_layout()
-        return fig
+        Drawn by :func:`preisach.plotting.plot_sweep_traces`.
+        """
+        from ..plotting.experiments import plot_sweep_traces
+
+        return plot_sweep_traces(self, fig=fig)
 
     def plot_initial_states(self, *, fig: Figure | None = None) -> Figure:
-        """Major loop, neutral locus and the initial states, one panel per frequency (Figs 4.6-4.8).
+        """Major loop, neutral locus and the initial states per frequency.
 
-        Needs model plants.
+        Drawn by :func:`preisach.plotting.plot_initial_states`.
         """
-        from matplotlib.figure import Figure
+        from ..plotting.experiments import plot_initial_states
 
-        if not self.models:
-            raise ValueError(
-                "plot_initial_states: needs the models (sweeps on model plants keep them)"
-            )
-        fs = sorted(self.models)
-        fig = Figure(figsize=(4.5 * len(fs), 4.0)) if fig is None else fig
-        axes = np.atleast_1d(fig.subplots(1, len(fs), squeeze=False)[0])
-        for ax, f in zip(axes, fs):
-            pts = {
-                f"psi_{s['state']}": (s["offset"], s["y_end"])
-                for s in self.states
-                if s["frequency"] == f
-            }
-            neutral_locus(self.models[f]).plot(
-                ax=ax, model=self.models[f], points=pts, title=f"f = {f:g} Hz"
-            )
-        fig.tight_layout()
-        return fig
+        return plot_initial_states(self, fig=fig)
 
 
 def _plants(plants: Mapping[float, Plant | PreisachModel] | None) -> dict[float, Plant]:
