@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .._io import save_figure, write_json
+from ..execution import add_scheduler_argument
 from ..model import BUILTIN_MODELS, PreisachModel
 from ..neutral import check_mp, neutral_locus
 from ..noise import NoiseSpec
@@ -151,6 +152,8 @@ def _run_sweep(args: argparse.Namespace) -> int:
         y_d=args.y_d,
         protocol=proto,
         init_options=init_opts,
+        scheduler=args.scheduler,
+        store=args.store,
         progress=not args.quiet,
     )
     data = res.to_dict()
@@ -316,6 +319,7 @@ def _sweep_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--csv", metavar="CSV", help="also write the tidy table (one row per trial) as CSV"
     )
+    add_scheduler_argument(p, default="serial")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 

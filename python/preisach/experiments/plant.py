@@ -221,6 +221,18 @@ class ModelPlant:
     def __repr__(self) -> str:
         return f"ModelPlant({self.model!r}, sample_time={self._ts:g})"
 
+    def __getstate__(self) -> dict[str, Any]:
+        # The C++ simulator does not pickle; its exact state does (studies ship plants to
+        # worker processes and Dask workers).
+        d = self.__dict__.copy()
+        d["_sim"] = self._sim.state
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        state = d.pop("_sim")
+        self.__dict__.update(d)
+        self._sim = self.model.simulator(state)
+
     @property
     def sample_time(self) -> float:
         """Sampling period (s)."""

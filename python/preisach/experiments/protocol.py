@@ -130,7 +130,10 @@ def control_effort(
     i0, i1 = _index(a, sample_time), _index(b, sample_time)
     if i1 > len(uc):
         raise ValueError(f"effort window {effort!r} s needs {i1} samples, got {len(uc)}")
-    return float(np.linalg.norm(uc[i0:i1] - ubar)), ubar
+    # pairwise summation, not BLAS: the same bits whatever the thread count (a study run on
+    # Dask workers equals the serial run), and no BLAS threads spinning against the C++ loops
+    d = uc[i0:i1] - ubar
+    return float(np.sqrt(np.sum(d * d))), ubar
 
 
 @lru_cache(maxsize=256)

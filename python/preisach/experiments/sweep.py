@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -22,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._io import write_text
-from .._progress import progress_bar
+from ..execution import run_tasks
 from ..model import PreisachModel, State
 from .closed_loop import ClosedLoopResult, closed_loop_trials
 from .drift import DriftResult, drift_trials
@@ -350,6 +351,71 @@ class SweepResult:
         return plot_initial_states(self, fig=fig)
 
 
+@dataclass(frozen=True)
+class _SweepTask:
+    """One task of a sweep: every seed at one frequency, initial state and gain."""
+
+    frequency: float
+    kind: str
+    gain: float
+    keep_traces: bool
+
+    @property
+    def key(self) -> str:
+        return f"f{self.frequency:g}-{self.kind}-g{self.gain:.17g}"
+
+
+def _sweep_task(
+    task: _SweepTask,
+    *,
+    plants: Mapping[float, Plant],
+    experiment: str,
+    protocol: DriftProtocol | ClosedLoopProtocol,
+    seeds: list[int],
+    y_d: float,
+    init_options: Mapping[str, Any],
+    amplitude: float,
+) -> tuple[dict[str, Any], list[dict[str, Any]], list[DriftResult | ClosedLoopResult]]:
+    """Initialise the plant, run every seed at one gain: (init info, rows, kept traces)."""
+    f, k = task.frequency, task.kind
+    plant = plants[f]
+    model = getattr(plant, "model", None)
+    init: Initialisation = drive_to_state(plant, k, y_d, f, **dict(init_options))
+    info: dict[str, Any] = {"frequency": f, "state": k, **init.to_dict()}
+    info.pop("kind")
+    if isinstance(model, PreisachModel) and init.state is not None:
+        info.update(state_slopes(model, init.state, amplitude))
+        if k == "n" and init.l_inverse is not None:
+            exact = model.slopes(model.neutral_state(init.l_inverse))
+            info["exact_dy_du_rising"] = float(exact.rising)
+            info["exact_dy_du_falling"] = float(exact.falling)
+    runner = drift_trials if experiment == "drift" else closed_loop_trials
+    results = runner(
+        plant,
+        init,
+        [task.gain] * len(seeds),
+        seeds,
+        protocol,  # type: ignore[arg-type]
+        keep_traces=task.keep_traces,
+    )
+    rows: list[dict[str, Any]] = []
+    kept: list[DriftResult | ClosedLoopResult] = []
+    for res in results:
+        d = res.to_dict()
+        del d["frequency"]
+        row = {
+            "frequency": f,
+            "state": d.pop("kind"),
+            "gain": d.pop("gain"),
+            "seed": d.pop("seed"),
+        }
+        row.update(d)
+        rows.append(row)
+        if task.keep_traces:
+            kept.append(res)
+    return info, rows, kept
+
+
 def _plants(plants: Mapping[float, Plant | PreisachModel] | None) -> dict[float, Plant]:
     if plants is None:
         return dict(ss15_plants())
@@ -379,6 +445,9 @@ def regulation_sweep(
     init_options: Mapping[str, Any] | None = None,
     trace: tuple[float, int | None] | None = (1.6, None),
     slope_gain: float = 1.6,
+    scheduler: str | None = "serial",
+    client: Any = None,
+    store: str | os.PathLike[str] | None = None,
     progress: bool = True,
 ) -> SweepResult:
     """Run the drift or closed-loop experiment over frequencies, states, gains and seeds.
@@ -408,8 +477,17 @@ def regulation_sweep(
         first seed.  Default: ``K_n = 1.6`` as in Figs 4.9-4.11 and 5.2-5.4.
     slope_gain : float
         ``K_n`` whose noise peak is the finite excursion of :func:`state_slopes`.
+    scheduler : str, optional
+        Where the (frequency, state, gain) tasks run: ``"serial"`` (default), ``"processes[:N]"``,
+        ``"local[:N]"`` (a Dask LocalCluster) or a Dask scheduler address
+        (:mod:`preisach.execution`).  Every scheduler gives the same result, bit for bit.
+    client : distributed.Client, optional
+        A running Dask client (overrides ``scheduler``).
+    store : str or path-like, optional
+        Keep each finished task in this folder; a rerun with the same folder and parameters
+        skips them (resume after an interruption).
     progress : bool
-        Show a progress bar over the trials (``False``: nothing).
+        Show a progress bar over the tasks (``False``: nothing).
 
     Returns
     -------
@@ -444,54 +522,56 @@ def regulation_sweep(
     if trace is not None and tr_seed is None:
         tr_seed = seed_list[0]
     amp = proto.noise.amplitude * proto.input_gain * float(slope_gain)
+    freqs = sorted(pl)
+    tasks = [
+        _SweepTask(
+            f,
+            k,
+            g,
+            tr_gain is not None and math.isclose(g, tr_gain) and tr_seed in seed_list,
+        )
+        for f in freqs
+        for k in kinds
+        for g in gain_list
+    ]
+    shared = {
+        "plants": pl,
+        "experiment": experiment,
+        "protocol": proto,
+        "seeds": seed_list,
+        "y_d": y_d,
+        "init_options": dict(init_options or {}),
+        "amplitude": amp,
+    }
+    tag = repr((experiment, freqs, kinds, gain_list, seed_list, y_d, proto.to_dict(), amp))
+    outs = run_tasks(
+        _sweep_task,
+        tasks,
+        keys=[f"{i:05d}-{t.key}" for i, t in enumerate(tasks)],
+        scheduler=scheduler,
+        client=client,
+        shared=shared,
+        store=store,
+        store_tag="regulation_sweep " + tag,
+        progress=progress,
+        desc=f"{experiment} sweep",
+    )
     rows: list[dict[str, Any]] = []
     infos: list[dict[str, Any]] = []
     traces: dict[tuple[float, str], DriftResult | ClosedLoopResult] = {}
     models: dict[float, PreisachModel] = {}
-    n_trials = len(pl) * len(kinds) * len(gain_list) * len(seed_list)
-    bar = progress_bar(n_trials, f"{experiment} sweep", enabled=progress, unit="trial")
-    for f in sorted(pl):
-        plant = pl[f]
-        model = getattr(plant, "model", None)
+    initialised: set[tuple[float, str]] = set()
+    for task, (info, task_rows, kept) in zip(tasks, outs):
+        model = getattr(pl[task.frequency], "model", None)
         if isinstance(model, PreisachModel):
-            models[f] = model
-        for k in kinds:
-            init: Initialisation = drive_to_state(plant, k, y_d, f, **dict(init_options or {}))
-            info: dict[str, Any] = {"frequency": f, "state": k, **init.to_dict()}
-            info.pop("kind")
-            if isinstance(model, PreisachModel) and init.state is not None:
-                info.update(state_slopes(model, init.state, amp))
-                if k == "n" and init.l_inverse is not None:
-                    exact = model.slopes(model.neutral_state(init.l_inverse))
-                    info["exact_dy_du_rising"] = float(exact.rising)
-                    info["exact_dy_du_falling"] = float(exact.falling)
+            models[task.frequency] = model
+        if (task.frequency, task.kind) not in initialised:  # one per (frequency, state)
+            initialised.add((task.frequency, task.kind))
             infos.append(info)
-            for g in gain_list:
-                keep = tr_gain is not None and math.isclose(g, tr_gain) and tr_seed in seed_list
-                runner = drift_trials if experiment == "drift" else closed_loop_trials
-                results = runner(
-                    plant,
-                    init,
-                    [g] * len(seed_list),
-                    seed_list,
-                    proto,  # type: ignore[arg-type]
-                    keep_traces=keep,
-                )
-                for res in results:
-                    d = res.to_dict()
-                    del d["frequency"]
-                    row = {
-                        "frequency": f,
-                        "state": d.pop("kind"),
-                        "gain": d.pop("gain"),
-                        "seed": d.pop("seed"),
-                    }
-                    row.update(d)
-                    rows.append(row)
-                    if keep and res.seed == tr_seed:
-                        traces[(f, k)] = res
-                bar.update(len(results))
-    bar.close()
+        rows.extend(task_rows)
+        for res in kept:
+            if res.seed == tr_seed:
+                traces[(task.frequency, task.kind)] = res
     config = {
         "experiment": experiment,
         "y_d": y_d,
