@@ -18,7 +18,8 @@ Randomised per case: the effect's parameters (inside the generator), its size (t
 part no classical model can absorb, ``--size-min``..``--size-max`` times the noise), the noise
 level (0.7-1.5 mV), the experiments' frequencies and phases, and the noise realisation.
 
-    python scripts/diagnosis_study.py --per-kind 10 --workers 2
+    python scripts/diagnosis_study.py --per-kind 10 [--scheduler processes:2|local:8|tcp://HOST:8786]
+        [--store DIR]   (a rerun with the same DIR skips the finished cases)
 """
 
 from __future__ import annotations
@@ -29,10 +30,10 @@ import math
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
-from preisach._progress import progress_bar
+from preisach.execution import add_scheduler_argument, run_tasks
+from tqdm import tqdm
 
 
 def run_case(job: dict[str, Any]) -> dict[str, Any]:
@@ -88,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         help="truth: 'own' (different-form proof: forms unlike the candidates) "
         "or 'rig' (same-form check: the virtual rig's blocks)",
     )
-    ap.add_argument("--workers", type=int, default=2)
+    add_scheduler_argument(ap)
     ap.add_argument("--seed0", type=int, default=1000)
     ap.add_argument("--json", default="", help="write every case's result here")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
@@ -110,24 +111,22 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    results: list[dict[str, Any]] = [{} for _ in jobs]
-    bar = progress_bar(len(jobs), "diagnosis study", enabled=not a.quiet, unit="case", delay=0)
 
     def done(i: int, r: dict[str, Any]) -> None:
-        results[i] = r
-        if not a.quiet:
-            bar.write(f"{r['kind']} seed {r['seed']} -> {r['verdict']}", file=sys.stderr)
-        bar.update(1)
+        if not a.quiet:  # tqdm.write keeps the progress bar intact
+            tqdm.write(f"{r['kind']} seed {r['seed']} -> {r['verdict']}", file=sys.stderr)
 
-    if a.workers > 1:
-        with ProcessPoolExecutor(a.workers) as ex:
-            futures = {ex.submit(run_case, j): i for i, j in enumerate(jobs)}
-            for f in as_completed(futures):
-                done(futures[f], f.result())
-    else:
-        for i, j in enumerate(jobs):
-            done(i, run_case(j))
-    bar.close()
+    results = run_tasks(
+        run_case,
+        jobs,
+        keys=[f"{j['kind']}-{j['seed']}" for j in jobs],
+        scheduler=a.scheduler,
+        store=a.store,
+        store_tag=f"diagnosis_study {a.generator} {a.scale} {a.cv} {a.size_min} {a.size_max}",
+        progress=not a.quiet,
+        desc="diagnosis study",
+        on_result=done,
+    )
     wall = time.perf_counter() - t0
     labels = list(dict.fromkeys(["none", *kinds, *[r["verdict"] for r in results]]))
     print(

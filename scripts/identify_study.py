@@ -10,7 +10,8 @@
 3. Real data: yan9a-piezo (../shared/data), least squares on the first 60 %, verified on the last
    40 %, for several table sizes and output delays; the Preisach property tests on the data.
 
-Run:  python scripts/identify_study.py [--seeds N] [--out DIR]
+Run:  python scripts/identify_study.py [--seeds N] [--out DIR] [--scheduler S] [--store DIR]
+(``--scheduler local:4`` or ``tcp://HOST:8786`` runs part 2's seeds on Dask workers).
 With --out, the report figures (Figs 3.18-3.44 analogues) and verification plots are written there.
 """
 
@@ -23,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 from preisach import PreisachModel, Recording
+from preisach.execution import add_scheduler_argument, run_tasks
 from preisach.identify import identify_fod, identify_lsq, identify_surface
 from preisach.noise import uniform_filtered_noise
 from preisach.verify import congruency_metric, verify, wiping_out_metric
@@ -109,32 +111,48 @@ def round_trips(out: Path | None) -> None:
                 )
 
 
-def lsq_vs_fod(seeds: int) -> None:
+def _lsq_vs_fod_seed(seed: int, *, truth: PreisachModel) -> dict[str, list[tuple[float, float]]]:
+    """One noise seed of part 2 (a task: the same numbers on any scheduler)."""
+    rng = np.random.default_rng(100 + seed)
+    sweep = measured(truth, fod_sweep().u, "fod sweep", rng)
+    tests = experiments(truth, 1.0, rng)
+    u = np.clip(
+        1.3 * uniform_filtered_noise(30.0, 100.0, seed=200 + seed, cutoff=3.0, hold_time=0.1),
+        -100.0,
+        100.0,
+    )
+    excitation = measured(truth, u, "noise excitation", rng)
+    fits = {
+        "fod (21 levels)": identify_fod(sweep)[0],
+        "surface": identify_surface(sweep)[0],
+        "lsq, FOD sweep (41)": identify_lsq(sweep)[0],
+        "lsq, FOD sweep (21)": identify_lsq(sweep, 21)[0],
+        "lsq, 30 s noise (41)": identify_lsq(excitation)[0],
+    }
+    return {k: held_out(m, tests) for k, m in fits.items()}
+
+
+def lsq_vs_fod(seeds: int, scheduler: str, store: str | None) -> None:
     print(
         f"\n2. Least squares vs FOD identification on held-out data ({seeds} noise seeds, "
         "ss15-1hz, 1 Hz): mean max % / mean rms % of the output range"
     )
     truth = PreisachModel.builtin("ss15-1hz")
+    per_seed = run_tasks(
+        _lsq_vs_fod_seed,
+        list(range(seeds)),
+        keys=[f"seed-{s}" for s in range(seeds)],
+        scheduler=scheduler,
+        shared={"truth": truth},
+        store=store,
+        store_tag="identify_study lsq_vs_fod",
+        progress=True,
+        desc="identification seeds",
+    )
     acc: dict[str, list[list[tuple[float, float]]]] = {}
-    for seed in range(seeds):
-        rng = np.random.default_rng(100 + seed)
-        sweep = measured(truth, fod_sweep().u, "fod sweep", rng)
-        tests = experiments(truth, 1.0, rng)
-        u = np.clip(
-            1.3 * uniform_filtered_noise(30.0, 100.0, seed=200 + seed, cutoff=3.0, hold_time=0.1),
-            -100.0,
-            100.0,
-        )
-        excitation = measured(truth, u, "noise excitation", rng)
-        fits = {
-            "fod (21 levels)": identify_fod(sweep)[0],
-            "surface": identify_surface(sweep)[0],
-            "lsq, FOD sweep (41)": identify_lsq(sweep)[0],
-            "lsq, FOD sweep (21)": identify_lsq(sweep, 21)[0],
-            "lsq, 30 s noise (41)": identify_lsq(excitation)[0],
-        }
-        for k, m in fits.items():
-            acc.setdefault(k, []).append(held_out(m, tests))
+    for res in per_seed:
+        for k, v in res.items():
+            acc.setdefault(k, []).append(v)
     print(f"{'identification':<22} {'wiping-out':>15} {'cml':>15} {'noise':>15}")
     for k, runs in acc.items():
         a = np.asarray(runs)  # (seeds, experiments, 2)
@@ -190,11 +208,12 @@ def main() -> None:
     )
     ap.add_argument("--seeds", type=int, default=5, help="noise seeds of part 2 (default 5)")
     ap.add_argument("--out", type=Path, default=None, help="folder for figures")
+    add_scheduler_argument(ap)
     args = ap.parse_args()
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
     round_trips(args.out)
-    lsq_vs_fod(args.seeds)
+    lsq_vs_fod(args.seeds, args.scheduler, args.store)
     yan9a(args.out)
 
 

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from preisach.execution import TaskStore, parse_scheduler, run_tasks, task_seed
 from preisach.experiments import regulation_sweep
 from preisach.experiments.plant import ss15_plants
@@ -54,7 +53,10 @@ def test_parse_scheduler() -> None:
 def test_task_seed_is_stable_across_processes() -> None:
     here = [task_seed(5, k) for k in ("a", "b", "f1-n-g0.8")]
     assert len(set(here)) == 3 and task_seed(6, "a") != here[0]
-    code = "from preisach.execution import task_seed; print([task_seed(5, k) for k in ('a', 'b', 'f1-n-g0.8')])"
+    code = (
+        "from preisach.execution import task_seed; "
+        "print([task_seed(5, k) for k in ('a', 'b', 'f1-n-g0.8')])"
+    )
     env = {**os.environ, "PYTHONHASHSEED": "123"}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert out.returncode == 0, out.stderr
@@ -182,3 +184,18 @@ def test_dask_resume_after_interruption(client, tmp_path: Path) -> None:  # type
     assert out == [i * i for i in range(8)]
     stored = {pickle.loads(p.read_bytes())[0] for p in store.glob("*.pkl")}
     assert stored == {f"task-{i}" for i in range(8)}
+
+
+def test_cli_sweep_scheduler_and_store(tmp_path: Path) -> None:
+    from preisach.cli import main
+
+    base = ["experiment", "closed-loop", "--model", "ss15-1hz", "--states", "n,a"]
+    base += ["--gains", "0.8,2.4", "--seeds", "2", "-q"]
+    assert main([*base, "--json", str(tmp_path / "serial.json")]) == 0
+    args = ["--scheduler", "processes:2", "--store", str(tmp_path / "tasks")]
+    assert main([*base, *args, "--json", str(tmp_path / "procs.json")]) == 0
+    assert len(list((tmp_path / "tasks").glob("*.pkl"))) == 4
+    a = json.loads((tmp_path / "serial.json").read_text())
+    b = json.loads((tmp_path / "procs.json").read_text())
+    assert json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+    assert main([*base, "--scheduler", "threads:2", "--json", str(tmp_path / "x.json")]) != 0

@@ -42,7 +42,6 @@ import hashlib
 import os
 import pickle
 import re
-import sys
 import time
 import zlib
 from collections.abc import Callable, Mapping, Sequence
@@ -86,7 +85,7 @@ def available_cores() -> int:
 
 
 def task_seed(seed: int, key: str) -> int:
-    """A task's own seed from the study's ``seed`` and the task's ``key`` (stable everywhere).
+    """Derive a task's own seed from the study's ``seed`` and the task's ``key``.
 
     Uses a CRC-32 of the key (not Python's salted ``hash``), so it is the same in every
     process, on every machine and in every run.
@@ -209,7 +208,7 @@ class TaskStore:
         return isinstance(key, str) and self._file(key).is_file()
 
     def load(self, key: str) -> Any:
-        """The stored result of ``key`` (``KeyError`` when not stored)."""
+        """Return the stored result of ``key`` (``KeyError`` when not stored)."""
         f = self._file(key)
         if not f.is_file():
             raise KeyError(key)
@@ -427,7 +426,8 @@ def _run_dask(
     from distributed import as_completed
 
     # scatter([v]) ships v whole (scatter(v) would split a list or dict into its items)
-    scattered = {k: client.scatter([v], broadcast=True)[0] for k, v in shared.items()}
+    # (hash=False: fresh keys per run, so a cancelled earlier run cannot release them)
+    scattered = {k: client.scatter([v], broadcast=True, hash=False)[0] for k, v in shared.items()}
     stamp = f"{time.time_ns():x}"
     futs = {}
     for i in todo:
