@@ -80,24 +80,26 @@ def _eager(factory, out, calls=None):
 
 
 def test_regulation_sweep_counts_its_trials_and_progress_false_is_silent(monkeypatch):
+    import preisach.execution as execution
     import preisach.experiments.sweep as sweep_mod
 
     model = PreisachModel.builtin("ss15-1hz", levels=21)
     for enabled in (True, False):
         out = io.StringIO()
-        monkeypatch.setattr(sweep_mod, "progress_bar", _eager(pp.progress_bar, out))
+        monkeypatch.setattr(execution, "progress_bar", _eager(pp.progress_bar, out))
         sweep_mod.regulation_sweep(
             "drift",
             {1.0: model},
             states=["n"],
-            gains=[0.8],
-            seeds=[0, 1, 2],
+            gains=[0.8, 1.6],
+            seeds=[0, 1],
             trace=None,
             progress=enabled,
         )
         if enabled:
             last = out.getvalue().splitlines()[-1]
-            assert last.startswith("drift sweep: 100%") and "3/3" in last  # 1 state x 3 seeds
+            # one task per (frequency, state, gain), each over the seeds
+            assert last.startswith("drift sweep: 100%") and "2/2" in last and "task" in last
         else:
             assert out.getvalue() == ""
 
@@ -143,11 +145,11 @@ def test_diagnose_progress_true_draws_a_bar_and_false_nothing(monkeypatch, capsy
 
 
 def test_cli_quiet_turns_the_sweep_bar_off(monkeypatch, tmp_path):
-    import preisach.experiments.sweep as sweep_mod
+    import preisach.execution as execution
     from preisach.cli import main
 
     calls: list[dict] = []
-    monkeypatch.setattr(sweep_mod, "progress_bar", _eager(pp.progress_bar, io.StringIO(), calls))
+    monkeypatch.setattr(execution, "progress_bar", _eager(pp.progress_bar, io.StringIO(), calls))
     base = ["experiment", "drift", "--model", "ss15-1hz", "--gains", "0.8", "--seeds", "1"]
     base += ["--states", "n", "--json", str(tmp_path / "d.json")]
     assert main(base) == 0
