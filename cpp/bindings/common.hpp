@@ -22,6 +22,7 @@ void register_identify(py::module_& m);
 void register_diagnose(py::module_& m);
 void register_blocks(py::module_& m);
 void register_daq(py::module_& m);
+void register_rate(py::module_& m);
 
 // A 1-D float64 array viewed without a copy; `name` is used in error messages.
 inline const double* as_vector(const InArray& a, const char* name, std::size_t& n) {

@@ -11,4 +11,5 @@ PYBIND11_MODULE(_core, m) {
     register_diagnose(m);
     register_blocks(m);
     register_daq(m);
+    register_rate(m);
 }

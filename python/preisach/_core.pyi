@@ -665,3 +665,124 @@ class DaqTrialRunner:
     def planned(self) -> int: ...
     @property
     def running(self) -> bool: ...
+
+# --- rate_dependent.hpp (register_rate.cpp) ---
+class RateDependentModel:
+    def __init__(
+        self, tables: Sequence[EverettTable], knots: Sequence[float], tau: float
+    ) -> None: ...
+    @property
+    def size(self) -> int: ...
+    @property
+    def knots(self) -> NDArray[np.float64]: ...
+    @property
+    def tau(self) -> float: ...
+    @property
+    def u_min(self) -> float: ...
+    @property
+    def u_max(self) -> float: ...
+    @property
+    def tables(self) -> list[EverettTable]: ...
+    def table(self, k: int) -> EverettTable: ...
+    def blended(self, rate: float) -> EverettTable: ...
+    def weights(self, rate: ArrayLike) -> NDArray[np.float64]: ...
+
+class RateSimulator:
+    def __init__(
+        self, model: RateDependentModel, state: State, rate: float, sample_time: float
+    ) -> None: ...
+    def step(self, u: float, out_of_range: str = "clamp") -> float: ...
+    def run(self, u: ArrayLike, out_of_range: str = "clamp") -> NDArray[np.float64]: ...
+    def reset(self, state: State, rate: float) -> None: ...
+    @property
+    def output(self) -> float: ...
+    @property
+    def input(self) -> float: ...
+    @property
+    def rate(self) -> float: ...
+    @property
+    def sample_time(self) -> float: ...
+    @property
+    def state(self) -> State: ...
+    @property
+    def depth(self) -> int: ...
+    @property
+    def weights(self) -> NDArray[np.float64]: ...
+    @property
+    def readouts(self) -> NDArray[np.float64]: ...
+    def slopes(self) -> tuple[float, float]: ...
+
+def simulate_rate(
+    model: RateDependentModel,
+    u: ArrayLike,
+    state: State,
+    rate: float,
+    sample_time: float,
+    out_of_range: str = "clamp",
+) -> tuple[NDArray[np.float64], NDArray[np.float64], State, float]: ...
+def simulate_rate_batch(
+    model: RateDependentModel,
+    u: ArrayLike,
+    states: Sequence[State],
+    rates: Sequence[float],
+    sample_time: float,
+    out_of_range: str = "clamp",
+    threads: int = 0,
+) -> tuple[NDArray[np.float64], list[State], NDArray[np.float64]]: ...
+def closed_loop_rate(
+    simulator: RateSimulator,
+    u_open: ArrayLike,
+    setpoint: float,
+    kp: float,
+    ki: float,
+    sample_time: float,
+    average: int = 1,
+    enable_at: int = 0,
+    input_gain: float = 1.0,
+    out_of_range: str = "clamp",
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+def closed_loop_rate_batch(
+    model: RateDependentModel,
+    states: Sequence[State],
+    rates: Sequence[float],
+    u_open: ArrayLike,
+    setpoint: float,
+    kp: float,
+    ki: float,
+    sample_time: float,
+    average: int = 1,
+    enable_at: int = 0,
+    input_gain: float = 1.0,
+    out_of_range: str = "clamp",
+    threads: int = 0,
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    list[State],
+    NDArray[np.float64],
+]: ...
+def filter_rate(
+    u: ArrayLike, u0: float, rate0: float, sample_time: float, tau: float
+) -> NDArray[np.float64]: ...
+def rate_normal_equations(
+    levels: ArrayLike,
+    state: State,
+    u: ArrayLike,
+    y: ArrayLike,
+    fold: ArrayLike,
+    n_folds: int,
+    knots: Sequence[float],
+    tau: float,
+    sample_time: float,
+    rate0: float = 0.0,
+    out_of_range: str = "clamp",
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int64],
+    State,
+    float,
+]: ...

@@ -409,6 +409,11 @@ class PreisachModel:
 
         """
         key = name.lower()
+        if key == "ss15-rate":
+            raise ValueError(
+                "name: 'ss15-rate' is rate-dependent; use "
+                "preisach.rate_model.RateDependentPreisachModel.builtin('ss15-rate')"
+            )
         if key not in BUILTIN_MODELS:
             raise ValueError(
                 f"name: unknown built-in model {name!r}; choose from {sorted(BUILTIN_MODELS)}"

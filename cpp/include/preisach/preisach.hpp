@@ -12,6 +12,7 @@
 //   neutral.hpp    locus of neutral states N(l) and its inverse (Eq 2.18-2.20)
 //   control.hpp    discrete PI regulation of a model (chapter 5)
 //   play.hpp, moving.hpp   rate-dependent play and output-feedback (moving) models, for diagnosis
+//   rate_dependent.hpp  K Everett tables blended by a filtered input rate, one shared boundary
 //   blocks.hpp     physics blocks of the virtual rig (structural mode, creep, delay, ...)
 //   daq.hpp        DAQ layer: devices, calibration, virtual SS15, Comedi, trial runner
 #pragma once
@@ -26,6 +27,7 @@
 #include "moving.hpp"
 #include "neutral.hpp"
 #include "play.hpp"
+#include "rate_dependent.hpp"
 #include "regressor.hpp"
 #include "simulator.hpp"
 #include "types.hpp"

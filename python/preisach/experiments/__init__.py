@@ -51,6 +51,7 @@ from .protocol import (
     differential_drift,
     trial_noise,
 )
+from .rate_plant import RatePlant
 from .sweep import EXPERIMENTS, SweepResult, regulation_sweep, state_slopes
 
 __all__ = [
@@ -72,6 +73,7 @@ __all__ = [
     "ModelPlant",
     "PIConfig",
     "Plant",
+    "RatePlant",
     "SweepResult",
     "Waveform",
     "branch_input",

@@ -1,0 +1,180 @@
+"""The rate-dependent model: reduction to the classical model, the ss15-rate built-in on
+triangle sweeps, persistence, batches, and the experiments running on it as a plant."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+from preisach import PreisachModel, State
+from preisach.experiments import PIConfig, closed_loop_trials, drive_to_state
+from preisach.experiments.closed_loop import ClosedLoopProtocol
+from preisach.experiments.rate_plant import RatePlant
+from preisach.rate_model import (
+    RateDependentPreisachModel,
+    RateState,
+    triangle_rate,
+)
+
+
+@pytest.fixture(scope="module")
+def ss15_rate() -> RateDependentPreisachModel:
+    return RateDependentPreisachModel.builtin("ss15-rate", levels=101)
+
+
+def fod_triangle(alphas, rate: float, dt: float, lo: float = -100.0) -> np.ndarray:
+    """FOD sweep at a constant |du/dt|: from lo up to each alpha and back to lo."""
+    h = rate * dt
+    parts = []
+    for a in alphas:
+        n = int(round((a - lo) / h))
+        up = lo + h * np.arange(1, n + 1)
+        parts += [up, up[::-1][1:], [lo]]
+    return np.concatenate(parts)
+
+
+def test_one_table_is_the_classical_model_bit_for_bit() -> None:
+    base = PreisachModel.builtin("ss15-2hz", 61)
+    rm = RateDependentPreisachModel.from_models([base], [800.0], 0.05)
+    rng = np.random.default_rng(1)
+    u = np.cumsum(rng.normal(0, 4, 4000)).clip(-100, 100)
+    s0 = base.neutral_state(13.0)
+    a = rm.simulate(u, RateState(s0, 321.0))
+    b = base.simulate(u, s0)
+    assert np.array_equal(a.output, b.output)
+    assert a.final_state == b.final_state
+
+
+@pytest.mark.parametrize("freq", [1, 2, 4])
+def test_ss15_rate_reduces_to_each_table_on_its_triangle_sweep(ss15_rate, freq) -> None:
+    classical = PreisachModel.builtin(f"ss15-{freq}hz", 101)
+    rate = triangle_rate(freq)  # 4 * 100 V * f
+    assert rate == 400.0 * freq
+    dt = 1e-3 if freq < 4 else 5e-4  # the thesis's sample times
+    u = fod_triangle(np.linspace(-60, 100, 9), rate, dt)
+    s0 = classical.negative_saturation()
+    got = ss15_rate.simulate(u, RateState(s0, rate), sample_time=dt)
+    ref = classical.simulate(u, s0)
+    assert np.max(np.abs(got.output - ref.output)) < 1e-9
+    # the other tables differ visibly on the same sweep
+    other = PreisachModel.builtin("ss15-1hz" if freq != 1 else "ss15-4hz", 101).simulate(u, s0)
+    assert np.max(np.abs(other.output - ref.output)) > 0.05
+    # from rest, the filter reaches the sweep's rate and then the outputs agree too
+    u3 = np.tile(u, 3)  # long enough for the filter to settle (8 tau)
+    cold = ss15_rate.simulate(u3, RateState(s0, 0.0), sample_time=dt)
+    ref3 = classical.simulate(u3, s0)
+    settle = int(8 * ss15_rate.tau / dt)
+    assert settle < u3.size // 2
+    assert np.max(np.abs(cold.output[settle:] - ref3.output[settle:])) < 1e-4  # e^-8 of the gap
+
+
+def test_constant_rate_between_knots_is_the_blended_model(ss15_rate) -> None:
+    rate = 400.0 * 2**0.5  # halfway between 1 and 2 Hz in ln(rate)
+    w = ss15_rate.weights(rate)
+    assert w == pytest.approx([0.5, 0.5, 0.0])
+    blend = ss15_rate.at_rate(rate)
+    u = fod_triangle([20.0, 99.0], rate, 1e-3)  # no clamped step: the rate stays constant
+    s0 = blend.negative_saturation()
+    got = ss15_rate.simulate(u, RateState(s0, rate)).output
+    assert np.max(np.abs(got - blend.simulate(u, s0).output)) < 1e-9
+
+
+def test_held_input_relaxes_to_the_slowest_table(ss15_rate) -> None:
+    u = np.concatenate([fod_triangle([50.0], 1600.0, 5e-4), np.full(8000, -100.0), [30.0] * 8000])
+    res = ss15_rate.simulate(u, ss15_rate.negative_saturation(1600.0), sample_time=5e-4)
+    assert res.rate[-1] < 1e-3 * 1600
+    slow = PreisachModel(ss15_rate.table)
+    assert res.output[-1] == pytest.approx(slow.readout(res.final_state), abs=1e-9)
+    assert ss15_rate.readout(res.final_rate_state) == pytest.approx(res.output[-1], abs=1e-9)
+
+
+def test_batch_equals_single_runs(ss15_rate) -> None:
+    rng = np.random.default_rng(4)
+    u = np.cumsum(rng.normal(0, 2, (4, 1500)), axis=1).clip(-100, 100)
+    states = [ss15_rate.neutral_state(x, r) for x, r in [(0, 0), (10, 500), (-20, 900), (5, 3000)]]
+    y, finals = ss15_rate.simulate_batch(u, states, threads=2)
+    for r in range(4):
+        one = ss15_rate.simulate(u[r], states[r])
+        assert np.array_equal(y[r], one.output)
+        assert finals[r] == one.final_rate_state
+
+
+def test_save_load_round_trip_and_errors(ss15_rate, tmp_path) -> None:
+    p = tmp_path / "rate.npz"
+    ss15_rate.save(p)
+    back = RateDependentPreisachModel.load(p)
+    assert back == ss15_rate
+    assert back.name == "ss15-rate" and back.tau == ss15_rate.tau
+    assert [f.name for f in tmp_path.iterdir()] == ["rate.npz"]  # no temporary file left
+    assert pickle.loads(pickle.dumps(ss15_rate)) == ss15_rate
+    PreisachModel.builtin("ss15-1hz", 11).save(tmp_path / "classical.npz")
+    with pytest.raises(ValueError, match="not a rate-dependent"):
+        RateDependentPreisachModel.load(tmp_path / "classical.npz")
+    (tmp_path / "bad.npz").write_bytes(b"junk")
+    with pytest.raises(ValueError, match="bad.npz"):
+        RateDependentPreisachModel.load(tmp_path / "bad.npz")
+    data = dict(np.load(p))
+    data["version"] = np.array(99)
+    np.savez(tmp_path / "new.npz", **data)
+    with pytest.raises(ValueError, match="newer"):
+        RateDependentPreisachModel.load(tmp_path / "new.npz")
+    ss15_rate.metadata["bad"] = object()
+    try:
+        with pytest.raises(TypeError, match="JSON"):
+            ss15_rate.save(tmp_path / "x.npz")
+    finally:
+        del ss15_rate.metadata["bad"]
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_validation(ss15_rate) -> None:
+    with pytest.raises(ValueError, match="rate"):
+        RateState(ss15_rate.anhysteretic_state().boundary, -1.0)
+    with pytest.raises(ValueError, match="uniformly"):
+        ss15_rate.simulate([0.0, 1.0, 2.0], t=[0.0, 1e-3, 3e-3])
+    with pytest.raises(ValueError, match="knots"):
+        RateDependentPreisachModel.from_models(
+            [PreisachModel.builtin("ss15-1hz", 11)] * 2, [800.0, 400.0], 0.1
+        )
+    with pytest.raises(ValueError, match="outside"):
+        ss15_rate.simulate([150.0], out_of_range="raise")
+    with pytest.raises(ValueError, match="unknown"):
+        RateDependentPreisachModel.builtin("ss15-9hz")
+
+
+def test_plant_runs_the_regulation_experiment(ss15_rate) -> None:
+    plant = RatePlant(ss15_rate, 1e-3, threads=2)
+    init = drive_to_state(plant, "n", 1.0, 2.0)
+    assert isinstance(init.state, RateState)
+    assert abs(init.y_end - 1.0) <= 0.03
+    # snapshots restore exactly
+    plant.reset(init.state)
+    y1 = plant.run_open_loop(np.full(50, init.offset))
+    plant.reset(init.state)
+    assert np.array_equal(plant.run_open_loop(np.full(50, init.offset)), y1)
+    proto = ClosedLoopProtocol()
+    batch = closed_loop_trials(plant, init, [1.6, 3.2], [0, 1], proto)
+    assert all(r.nc > 0 for r in batch)
+
+    # the sequential path (reset + waveform + loop in one run) gives the same efforts
+    class NoBatch:
+        def __init__(self, p: RatePlant) -> None:
+            self._p = p
+            self.sample_time, self.input_range = p.sample_time, p.input_range
+
+        def reset(self, state: State | None = None) -> None:
+            self._p.reset(state)
+
+        def run_open_loop(self, u):
+            return self._p.run_open_loop(u)
+
+        def run_closed_loop(self, u, c: PIConfig):
+            return self._p.run_closed_loop(u, c)
+
+        def snapshot(self) -> None:
+            return None
+
+    seq = closed_loop_trials(NoBatch(plant), init, [1.6, 3.2], [0, 1], proto)
+    for a, b in zip(batch, seq):
+        assert a.nc == pytest.approx(b.nc, rel=1e-9)
