@@ -138,7 +138,7 @@ def add_parser(subparsers: Any) -> None:
         help="identify a Preisach model from recordings (Mayergoyz, sqrt surface, least squares)",
         description="Identify a Preisach model from recordings (CSV/NPZ with t, u, y in s, V, V), "
         "write it to MODEL (read by PreisachModel.load and every later command) and print the "
-        "report: data used, residuals (V and %% of the output range), warnings.",
+        "report: data used, residuals (V and % of the output range), warnings.",
     )
     p.add_argument("recordings", nargs="+", metavar="REC", help="recording files (.csv or .npz)")
     p.add_argument(
@@ -196,7 +196,7 @@ def add_parser(subparsers: Any) -> None:
         "verify",
         help="simulate recordings through a model and print max/RMS errors per experiment",
         description="Simulate each recording's input through MODEL and print the maximum and RMS "
-        "error in volts and in %% of the output range per experiment; --properties also tests "
+        "error in volts and in % of the output range per experiment; --properties also tests "
         "the recordings for the wiping-out and congruent-minor-loop properties.",
     )
     v.add_argument("model", metavar="MODEL", help="model file written by `preisach identify`")
