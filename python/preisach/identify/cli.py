@@ -64,6 +64,10 @@ def _identify(args: argparse.Namespace) -> int:
     if args.delay < 0:
         raise ValueError(f"--delay: need a number of samples >= 0, got {args.delay}")
     recs = _load_recordings(args.recordings)
+    if args.method == "rate":
+        from .rate import run_cli
+
+        return run_cli(args, recs, _write_json)
     common = {"name": args.name, "initial_state": args.initial_state, "delay": args.delay}
     if args.method == "fod":
         model, report = identify_fod(recs, args.levels, project=args.project, **common)
@@ -146,10 +150,11 @@ def add_parser(subparsers: Any) -> None:
     )
     p.add_argument(
         "--method",
-        choices=("fod", "surface", "lsq"),
+        choices=("fod", "surface", "lsq", "rate"),
         default="fod",
         help="fod: Mayergoyz from FOD curves (default); surface: the thesis's square-root "
-        "FOD surface; lsq: least squares on every sample of any excitation",
+        "FOD surface; lsq: least squares on every sample of any excitation; rate: a "
+        "rate-dependent model from recordings at two or more rates",
     )
     p.add_argument(
         "--levels",
