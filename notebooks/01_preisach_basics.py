@@ -44,6 +44,13 @@ print(m)
 plot_major_loop(m, n_fod=10)
 
 # %% [markdown]
+# In Jupyter a model displays as a table - levels, input and output range, whether every relay
+# mass is non-negative - with a thumbnail of its major loop; `print(m)` is the one-line form.
+
+# %%
+m
+
+# %% [markdown]
 # ## The boundary ψ is the state
 # Relays with α ≤ φ(β) are at +1 (P⁺, shaded blue). Each input extremum leaves a corner; the
 # staircase is the reduced memory sequence. Step through an input history:

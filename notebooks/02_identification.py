@@ -233,6 +233,17 @@ for model in (m_fod, m_srf, m_lsq):
 verify(m_srf, recs[:2], delay=1).plot()
 
 # %% [markdown]
+# In Jupyter the reports display as tables with units: the least-squares identification
+# (model, data used, residuals, the cross-validation curve; warnings would be highlighted)
+# and the verification of the square-root model (doubtful rows highlighted).
+
+# %%
+from IPython.display import display
+
+display(rep_lsq)
+verify(m_srf, recs, delay=1)
+
+# %% [markdown]
 # ## What to take away
 #
 # * On a rig whose truth is a Preisach model, all three identifiers predict new

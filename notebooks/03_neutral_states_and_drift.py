@@ -184,6 +184,13 @@ plotting.plot_drift_summary(drift)
 plotting.plot_paired_differences(drift)
 
 # %% [markdown]
+# The sweep result itself displays as tables: drift mean ± std per state, frequency and gain,
+# and the thesis's claims checked cell by cell.
+
+# %%
+drift
+
+# %% [markdown]
 # ## What to take away
 #
 # * Starting from ψn the drift is small and of either sign; from ψa it is positive, from

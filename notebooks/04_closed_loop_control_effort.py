@@ -95,6 +95,13 @@ plotting.plot_effort_increase(effort)
 plotting.plot_paired_differences(effort)
 
 # %% [markdown]
+# The sweep result displays as tables: n_c mean ± std per state, Table 5.1's layout, and the
+# thesis's claims checked cell by cell.
+
+# %%
+effort
+
+# %% [markdown]
 # Where does ψn need the least effort? The thesis's simulations (Figs 5.5–5.7) say: at
 # every gain at 1 and 2 Hz; its *experiments* at 4 Hz lost the advantage above K_n = 4.0.
 # Count it here, frequency by frequency, on the means over seeds and seed by seed:

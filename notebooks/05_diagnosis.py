@@ -84,6 +84,14 @@ print(report.summary())
 plotting.plot_diagnosis(report)
 
 # %% [markdown]
+# In Jupyter the report displays itself: the verdict, each kept effect with its parameters
+# and their uncertainties, the held-out RMSE before and after, the candidates tried and the
+# figure.
+
+# %%
+report
+
+# %% [markdown]
 # ## 4. Compare with the truth
 #
 # The verdict, the held-out improvement and the fitted parameters against what the

@@ -162,6 +162,13 @@ print(real_report.summary())
 plotting.plot_residual_map(base, pieces, initial_state="anhysteretic")
 
 # %% [markdown]
+# The same report as Jupyter displays it: verdict, effects with uncertainties, held-out RMSE
+# before and after, the candidate table and the figure.
+
+# %%
+real_report
+
+# %% [markdown]
 # ## 5. FORC data of a magnetic sample
 #
 # The AGM measures the moment while the field rises again from a reversal field H_r after

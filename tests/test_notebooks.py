@@ -106,5 +106,14 @@ def test_notebook_runs_and_is_committed_without_outputs(path, tmp_path, monkeypa
         for o in c.outputs
     )
     assert images >= 3, f"{path.name}: expected figures in the outputs, got {images}"
+    # each chapter shows one of its results as Jupyter displays it (``_repr_html_``)
+    html = [
+        o["data"]["text/html"]
+        for c in nb.cells
+        if c.cell_type == "code"
+        for o in c.outputs
+        if "text/html" in o.get("data", {})
+    ]
+    assert any("<table>" in h for h in html), f"{path.name}: no rich display of a result"
     # outputs go to a temporary folder: running a notebook leaves its folder as it was
     assert sorted(p.name for p in folder.iterdir()) == [path.name]
