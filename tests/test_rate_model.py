@@ -178,3 +178,25 @@ def test_plant_runs_the_regulation_experiment(ss15_rate) -> None:
     seq = closed_loop_trials(NoBatch(plant), init, [1.6, 3.2], [0, 1], proto)
     for a, b in zip(batch, seq):
         assert a.nc == pytest.approx(b.nc, rel=1e-9)
+
+
+def test_rate_plots_and_loop_width(ss15_rate) -> None:
+    from preisach import Recording
+    from preisach.plotting import plot_everett_across_rates, plot_loop_width, plot_rate_loops
+    from preisach.plotting.rate import _triangle, loop_width
+
+    # the width measured from a simulated 2 Hz triangle is the 2 Hz classical model's
+    dt = 5e-4
+    u = _triangle(2.0, 100.0, dt)
+    classical = PreisachModel.builtin("ss15-2hz", 101)
+    y = classical.simulate(u, classical.negative_saturation()).output
+    got = ss15_rate.simulate(u, ss15_rate.negative_saturation(800.0), sample_time=dt).output
+    assert loop_width(u, got) == pytest.approx(loop_width(u, y), abs=1e-9)
+    assert loop_width(u, y) > 0.1
+    rec = Recording.from_arrays(u=u, y=y, sample_time=dt, experiment="2 Hz")
+    for fig in (
+        plot_rate_loops(ss15_rate, (1.0, 4.0)),
+        plot_everett_across_rates(ss15_rate),
+        plot_loop_width(ss15_rate, [rec], rates=[200.0, 800.0, 3200.0]),
+    ):
+        assert fig.axes

@@ -25,6 +25,10 @@ Neutral states and regulation (chapters 4-5, from :mod:`preisach.neutral` and
     :func:`plot_drift_summary` (Fig 4.12), :func:`plot_effort_summary` (Figs 5.5-5.7),
     :func:`plot_effort_increase` (Table 5.1 as a figure), :func:`plot_paired_differences`,
     :func:`plot_sweep_traces`, :func:`plot_initial_states`.
+Rate-dependent model (:mod:`preisach.rate_model`)
+    :func:`plot_rate_loops` (major loops across sweep rates), :func:`plot_everett_across_rates`
+    (the blended Everett function at several rates), :func:`plot_loop_width` (loop width
+    against rate, model and data).
 Diagnosis (:mod:`preisach.diagnose`)
     :func:`plot_residual_map` (mean residual over input level and input rate, and along the
     loop) and :func:`plot_diagnosis` (residual maps, spectra and the held-out fit of a
@@ -64,6 +68,7 @@ from .model import (
     plot_major_loop,
     plot_simulation,
 )
+from .rate import plot_everett_across_rates, plot_loop_width, plot_rate_loops
 
 __all__ = [
     "boundary_polyline",
@@ -77,14 +82,17 @@ __all__ = [
     "plot_effort_increase",
     "plot_effort_summary",
     "plot_everett",
+    "plot_everett_across_rates",
     "plot_fod_data",
     "plot_fod_surface",
     "plot_identification",
     "plot_initial_states",
     "plot_kappa",
+    "plot_loop_width",
     "plot_major_loop",
     "plot_neutral_locus",
     "plot_paired_differences",
+    "plot_rate_loops",
     "plot_residual_map",
     "plot_simulation",
     "plot_sweep",
