@@ -383,7 +383,11 @@ def test_identifiers_reject_recordings_with_fewer_than_2_samples(sweep):
 
 def test_lsq_rejects_bad_arguments(sweep):
     with pytest.raises(ValueError, match="at most 81 levels"):
-        identify_lsq(sweep, 101)
+        identify_lsq(sweep, 101, solver="dense")
+    with pytest.raises(ValueError, match="at most 401 levels"):
+        identify_lsq(sweep, 402)
+    with pytest.raises(ValueError, match="solver"):
+        identify_lsq(sweep, 11, solver="magic")
     with pytest.raises(ValueError, match="folds"):
         identify_lsq(sweep, 11, folds=1)
     with pytest.raises(ValueError, match="lambdas"):

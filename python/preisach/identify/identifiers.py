@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
 from ..model import PreisachModel
+from .delay import DelayEstimate, estimate_delay, shift_output
 from .fod_finder import FODData, find_fod_curves
 from .lsq import (
     InitialState,
@@ -303,6 +304,43 @@ def _recording_residuals(
     return res, warn
 
 
+Delay = Union[int, float, str, None]
+
+
+def _resolve_delay(
+    data: Any, delay: Delay, initial_state: InitialState, integer_native: bool = False
+) -> tuple[Any, float, DelayEstimate | None, float]:
+    """Apply (or estimate, for ``None``/``"auto"``) the output delay; see :mod:`.delay`.
+
+    Returns ``(data, delay, estimate, native)``: the recordings with the delay applied by
+    :func:`shift_output` (unchanged when it is 0, or when ``integer_native`` and it is an
+    integer - the caller then applies ``native`` itself), the delay (samples), how it was
+    estimated, and the delay left for the caller.
+    """
+    if isinstance(data, FODData):
+        if delay not in (None, "auto", 0):
+            raise ValueError("delay: not used with FODData (its curves are found already)")
+        return data, 0.0, None, 0.0
+    recs = _recordings(data)
+    names = _unique_names(recs)
+    _check_lengths(recs, names)
+    est = None
+    if delay is None or delay == "auto":
+        est = estimate_delay(recs, initial_state=initial_state, names=names)
+        d = est.delay
+    elif isinstance(delay, str) or isinstance(delay, bool):
+        raise ValueError(f"delay: expected a number of samples >= 0 or 'auto', got {delay!r}")
+    else:
+        d = float(delay)
+        if not (math.isfinite(d) and d >= 0.0):
+            raise ValueError(f"delay: need a number of samples >= 0, got {delay!r}")
+    if d == 0.0:
+        return recs, 0.0, est, 0.0
+    if integer_native and d == int(d):
+        return recs, d, est, d
+    return [shift_output(r, d) for r in recs], d, est, 0.0
+
+
 def _units(recs: Sequence[Any]) -> dict[str, str]:
     """``input_units`` and ``output_units`` of the recordings (``"V"`` when not stated)."""
     out = {}
@@ -399,7 +437,7 @@ def identify_fod(
     gaps: str = "fill",
     name: str = "",
     initial_state: InitialState = "burn-in",
-    delay: int = 0,
+    delay: Delay = None,
     **finder_options: Any,
 ) -> IdentificationReport:
     """Mayergoyz identification: FOD curves -> Everett table (thesis §2.6, Eq 2.12-2.14).
@@ -424,8 +462,12 @@ def identify_fod(
         Name of the model.
     initial_state : str or State
         Policy for the residuals on the recordings (see :func:`preisach.verify.verify`).
-    delay : int
-        Output delay (samples) for the residuals on the recordings.
+    delay : int, float, "auto" or None
+        Output delay (samples): ``y(k + delay)`` answers ``u(k)``.  The recordings are shifted
+        by it (:func:`~preisach.identify.delay.shift_output`; fractional delays interpolate the
+        input) before the FOD curves are found, and the residuals are those of the shifted
+        recordings.  ``None``/``"auto"`` (default): estimated by cross-validation
+        (:func:`~preisach.identify.delay.estimate_delay`); the report gives the estimate.
     **finder_options
         Passed to :func:`~preisach.identify.find_fod_curves` (``saturation_tol``,
         ``reversal_tol``, ``level_tol``, ``u_min``, ``u_max``).
@@ -441,6 +483,7 @@ def identify_fod(
     if gaps not in ("fill", "raise"):
         raise ValueError(f"gaps: expected 'fill' or 'raise', got {gaps!r}")
     check_policy(initial_state)
+    data, delay_used, estimate, _ = _resolve_delay(data, delay, initial_state)
     fd, recs, names, usage = _fod_data(data, levels, finder_options)
     table, filled, n_col0, n_ymin, rows = _core.mayergoyz(fd.levels, fd.y_grid, gaps)
     warnings = _fod_warnings(fd)
@@ -481,7 +524,8 @@ def identify_fod(
         )
     rng = _output_range(fd, recs)
     node_res = _node_residuals(model, fd, rng)
-    res, w2 = _recording_residuals(model, recs, names, initial_state, delay)
+    res, w2 = _recording_residuals(model, recs, names, initial_state, 0)
+    model.metadata["delay"] = delay_used
     return IdentificationReport(
         method="fod",
         model=model,
@@ -495,7 +539,8 @@ def identify_fod(
         elapsed=time.perf_counter() - t0,
         input_units=_units(recs)["input_units"],
         output_units=_units(recs)["output_units"],
-        delay=delay,
+        delay=delay_used,
+        delay_estimate=estimate,
     )
 
 
@@ -509,7 +554,7 @@ def identify_surface(
     y_min_source: str = "column_mean",
     name: str = "",
     initial_state: InitialState = "burn-in",
-    delay: int = 0,
+    delay: Delay = None,
     **finder_options: Any,
 ) -> IdentificationReport:
     """Square-root FOD surface identification (thesis §3.3.2, Eq 3.1-3.2), tabulated.
@@ -552,6 +597,7 @@ def identify_surface(
     check_policy(initial_state)
     if y_min_source not in ("column_mean", "corner"):
         raise ValueError(f"y_min_source: expected 'column_mean' or 'corner', got {y_min_source!r}")
+    data, delay_used, estimate, _ = _resolve_delay(data, delay, initial_state)
     fd, recs, names, usage = _fod_data(data, levels, finder_options)
     fit = fit_sqrt_surface(
         fd.levels, fd.y_grid, frequency=frequency, refine=refine, y_min_source=y_min_source
@@ -568,7 +614,8 @@ def identify_surface(
         )
     rng = _output_range(fd, recs)
     node_res = _node_residuals(model, fd, rng)
-    res, w2 = _recording_residuals(model, recs, names, initial_state, delay)
+    res, w2 = _recording_residuals(model, recs, names, initial_state, 0)
+    model.metadata["delay"] = delay_used
     return IdentificationReport(
         method="surface",
         model=model,
@@ -582,7 +629,8 @@ def identify_surface(
         elapsed=time.perf_counter() - t0,
         input_units=_units(recs)["input_units"],
         output_units=_units(recs)["output_units"],
-        delay=delay,
+        delay=delay_used,
+        delay_estimate=estimate,
     )
 
 
@@ -593,11 +641,12 @@ def identify_lsq(
     lambdas: str | Sequence[float] = "auto",
     folds: int = 5,
     initial_state: InitialState = "burn-in",
-    delay: int = 0,
+    delay: Delay = None,
     nonnegative: bool = True,
     u_range: tuple[float, float] | None = None,
     name: str = "",
     progress: bool = True,
+    solver: str = "auto",
 ) -> IdentificationReport:
     """Least-squares identification of the Everett table from arbitrary recordings.
 
@@ -613,7 +662,7 @@ def identify_lsq(
         ``y`` (s, V, V).
     levels : int or array_like
         Table grid: a number of equally spaced levels over ``u_range`` (default 41), or the
-        levels (V).  At most 81 levels (the normal equations are dense).
+        levels (V); at most 401.
     lambdas : "auto" or sequence of float
         Smoothness weights to try (dimensionless).  ``"auto"``: ``1e-8, 1e-6, ..., 1e2`` and
         then the decades on either side of the best of those (8 values).
@@ -621,8 +670,11 @@ def identify_lsq(
         Number of contiguous time blocks for cross-validation (>= 2).
     initial_state : {"burn-in", "negative", "positive", "anhysteretic"} or State
         Initial-state policy (default: discard each recording's burn-in).
-    delay : int
-        Output delay in samples: ``y[k + delay]`` answers ``u[k]`` (1 for the yan9a data).
+    delay : int, float, "auto" or None
+        Output delay in samples: ``y[k + delay]`` answers ``u[k]``.  An integer is applied by
+        pairing the samples; a fractional one by shifting the recordings
+        (:func:`~preisach.identify.delay.shift_output`).  ``None``/``"auto"`` (default):
+        estimated by cross-validation (:func:`~preisach.identify.delay.estimate_delay`).
     nonnegative : bool
         Impose ``mu >= 0`` (all cell masses >= 0).
     u_range : (float, float), optional
@@ -631,6 +683,12 @@ def identify_lsq(
         Name of the model.
     progress : bool
         Show a progress bar over the cross-validation fits (``False``: nothing).
+    solver : {"auto", "dense", "sparse"}
+        ``"dense"``: the cell masses by exact non-negative least squares on dense normal
+        equations (at most 81 levels; cubic cost).  ``"sparse"``: the Everett nodes by
+        conjugate gradients on sparse normal equations (:mod:`preisach.identify.lsq_sparse`),
+        then the projection to Mp when ``nonnegative`` (its moved mass is in
+        ``report.projection``).  ``"auto"`` (default): dense up to 41 levels, sparse beyond.
 
     Returns
     -------
@@ -641,6 +699,11 @@ def identify_lsq(
     """
     t0 = time.perf_counter()
     recs = _recordings(recordings)
+    names = _unique_names(recs)
+    _check_lengths(recs, names)
+    recs, delay_used, estimate, native = _resolve_delay(
+        recs, delay, initial_state, integer_native=True
+    )
     names = _unique_names(recs)
     for nm, r in zip(names, recs):
         for a in ("u", "y"):
@@ -665,18 +728,26 @@ def identify_lsq(
         lambdas=lambdas,
         folds=folds,
         initial_state=initial_state,
-        delay=delay,
+        delay=int(native),
         nonnegative=nonnegative,
         names=names,
         progress=progress,
+        solver=solver,
     )
+    details.delay = delay_used
     model = PreisachModel.from_weights(lv, weights_matrix(lv, w), y_min=y_min, name=name)
+    proj = None
+    if details.solver == "sparse" and nonnegative and _negative_cells(model):
+        model, proj = project_nonnegative(model)
+        ci, cj = np.tril_indices(lv.size - 1)
+        details.n_zero = int(np.count_nonzero(model.cell_weights()[ci, cj] <= 0.0))
     model.metadata = {
         "source": "identify_lsq",
         "chosen_lambda": details.chosen_lambda,
         "folds": details.folds,
         "initial_state": details.initial_state,
         "delay": details.delay,
+        "solver": details.solver,
     }
     usage = [
         DataUsage(
@@ -690,7 +761,7 @@ def identify_lsq(
     ]
     # lsq reports the inexact-state recordings itself (usage notes)
     res, w_res = _recording_residuals(
-        model, recs, names, initial_state, details.delay, state_warnings=False
+        model, recs, names, initial_state, int(native), state_warnings=False
     )
     warnings += w_res
     neg = _negative_cells(model)
@@ -701,9 +772,11 @@ def identify_lsq(
         residuals=res,
         warnings=warnings,
         lsq=details,
+        projection=proj,
         negative_cells=neg,
         elapsed=time.perf_counter() - t0,
         input_units=_units(recs)["input_units"],
         output_units=_units(recs)["output_units"],
-        delay=details.delay,
+        delay=delay_used,
+        delay_estimate=estimate,
     )

@@ -74,8 +74,12 @@ __all__ = [
 #: Coarse grid of the dimensionless smoothness weight lambda for ``lambdas="auto"``: every two
 #: decades; the decades next to the best one are then tried as well.
 COARSE_LAMBDAS: tuple[float, ...] = (1e-8, 1e-6, 1e-4, 1e-2, 1.0, 1e2)
-#: Largest table identify_lsq accepts (the Gram matrices are dense, (n(n-1)/2 + 1)^2 doubles).
+#: Largest table the dense solver accepts (its Gram matrices are (n(n-1)/2 + 1)^2 doubles).
 MAX_LEVELS = 81
+#: Largest table of the sparse solver (the built-in models' resolution is 201 levels).
+MAX_SPARSE_LEVELS = 401
+#: ``solver="auto"`` uses the dense solver up to this many levels, the sparse one beyond.
+DENSE_UP_TO = 41
 
 
 @dataclass
@@ -112,13 +116,23 @@ class LsqDetails:
         Whether ``w >= 0`` was imposed.
     initial_state : str
         The policy used.
-    delay : int
-        Output delay (samples) used.
+    delay : float
+        Output delay (samples) used (fractional when estimated so).
     solver_iterations : int
-        Block-pivoting iterations of the final fit.
+        Block-pivoting iterations of the final fit (dense), or conjugate-gradient iterations of
+        all solves (sparse).
     timings : dict of str to float
         Wall-clock seconds per stage (``normal_equations``, ``transform``, ``cross_validation``,
         ``final_fit``).
+    solver : str
+        ``"dense"`` (cell masses, exact ``mu >= 0`` inside the fit) or ``"sparse"`` (Everett
+        nodes by conjugate gradients, :mod:`preisach.identify.lsq_sparse`; ``mu >= 0`` by the
+        projection to Mp afterwards).
+    unobserved_nodes : int
+        Everett nodes no fitted sample depends on (the input never reaches their part of the
+        table): the smoothness prior alone sets them.
+    n_nodes : int
+        Everett nodes of the table.
 
     """
 
@@ -136,16 +150,26 @@ class LsqDetails:
     penalty_scale: float
     nonnegative: bool
     initial_state: str
-    delay: int
+    delay: float
     solver_iterations: int
     timings: dict[str, float] = field(default_factory=dict)
+    solver: str = "dense"
+    unobserved_nodes: int = 0
+    n_nodes: int = 0
 
     def summary_lines(self, units: str = "V") -> list[str]:
         """Lines of the identification report (errors in the output ``units``)."""
         lines = [
             f"  least squares: {self.n_samples} samples fitted ({self.n_skipped} not: "
             f"burn-in/delay), {self.n_params} parameters, {self.n_zero} masses at 0, "
-            f"initial state '{self.initial_state}', delay {self.delay}",
+            f"initial state '{self.initial_state}', delay {self.delay:g}",
+            f"  solver: {self.solver}"
+            + (
+                " (cell masses, mu >= 0 inside the fit)"
+                if self.solver == "dense"
+                else " (Everett nodes, conjugate gradients; mu >= 0 by projection)"
+            )
+            + f", {self.solver_iterations} iterations",
             f"  smoothness lambda by {self.folds}-fold CV over time blocks: chosen "
             f"{self.chosen_lambda:.3g}; fit rms {self.fit_rms:.4g} {units}",
             f"    lambda     CV rms ({units})",
@@ -153,6 +177,11 @@ class LsqDetails:
         for lv, cv in zip(self.lambdas, self.cv_rms):
             mark = "  <-" if lv == self.chosen_lambda else ""
             lines.append(f"    {lv:<10.3g} {cv:.5g}{mark}")
+        if self.unobserved_nodes:
+            lines.append(
+                f"  {self.unobserved_nodes} of {self.n_nodes} Everett nodes are not reached by the "
+                "input (no sample depends on them): the smoothness prior sets them"
+            )
         return lines
 
     def to_dict(self) -> dict[str, Any]:
@@ -175,6 +204,9 @@ class LsqDetails:
             "delay": self.delay,
             "solver_iterations": self.solver_iterations,
             "timings": dict(self.timings),
+            "solver": self.solver,
+            "unobserved_nodes": self.unobserved_nodes,
+            "n_nodes": self.n_nodes,
         }
 
 
@@ -286,6 +318,31 @@ def roughness_matrix(levels: ArrayLike) -> NDArray[np.float64]:
     return R
 
 
+def robust_cholesky(H: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
+    """Cholesky factor (``scipy.linalg.cho_factor`` form) of a symmetric semidefinite ``H``.
+
+    Gram matrices of data that leave cells unobserved (an input that never reaches part of the
+    table), with a small smoothness weight, are singular up to round-off, and a plain Cholesky
+    fails on them.  A ridge of ``1e-12, 1e-10, ..., 1e-4`` times the mean diagonal is added
+    until the factorisation succeeds: the ridge pulls the unobserved directions to zero while
+    the smoothness penalty decides them, and changes the observed ones by that relative amount
+    at most.  A matrix with a non-finite or non-positive diagonal raises ValueError.
+    """
+    m = H.shape[0]
+    scale = float(np.trace(H)) / max(m, 1)
+    if not (math.isfinite(scale) and scale > 0.0):
+        raise ValueError(
+            "normal equations: the data determine no parameter (zero or non-finite Gram)"
+        )
+    for ridge in (0.0, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4):
+        Hr = H if ridge == 0.0 else H + (ridge * scale) * np.eye(m)
+        try:
+            return cho_factor(Hr, check_finite=False)  # type: ignore[no-any-return]
+        except LinAlgError:
+            continue
+    raise ValueError("normal equations: not positive definite even with a 1e-4 relative ridge")
+
+
 def solve_nonnegative_qp(
     H: NDArray[np.float64],
     g: NDArray[np.float64],
@@ -328,7 +385,7 @@ def solve_nonnegative_qp(
     """
     m = g.size
     F = np.ones(m, dtype=bool) if free is None else free.copy()
-    fac = cho_factor(H, check_finite=False)
+    fac = robust_cholesky(H)
     x0 = cho_solve(fac, g, check_finite=False)
     cols: dict[int, NDArray[np.float64]] = {}  # j -> column j of H^-1
     xscale = float(np.max(np.abs(x0))) if m else 0.0
@@ -395,6 +452,7 @@ class _Prepared:
     usage: list[dict[str, Any]]
     warnings: list[str]
     timings: dict[str, float]
+    unobserved_nodes: int = 0
 
 
 def _prepare(
@@ -480,6 +538,7 @@ def _prepare(
         usage,
         warnings,
         {"normal_equations": t1 - t0, "transform": t2 - t1},
+        int(np.count_nonzero(np.diagonal(G.sum(axis=0))[:-1] <= 0.0)),
     )
 
 
@@ -517,10 +576,7 @@ def _fit(
     if nonneg:
         w, free_out, it, ok = solve_nonnegative_qp(Hr, red.g, free)
     else:
-        try:
-            w = cho_solve(cho_factor(Hr, check_finite=False), red.g, check_finite=False)
-        except LinAlgError:
-            w = np.asarray(np.linalg.lstsq(Hr, red.g, rcond=None)[0], dtype=np.float64)
+        w = cho_solve(robust_cholesky(Hr), red.g, check_finite=False)
         free_out, it, ok = None, 1, True
     c = (red.gc - red.hwc @ w) / red.hcc
     return np.append(w, c), free_out, it, ok
@@ -537,16 +593,27 @@ def identify_lsq_core(
     nonnegative: bool,
     names: Sequence[str],
     progress: bool = False,
+    solver: str = "auto",
 ) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
     """Cell masses, y_min and the details of a least-squares identification (no model built).
 
-    Returns ``(w (cells, V), y_min (V), details, usage, warnings)``; see :func:`identify_lsq`.
-    ``progress`` shows a bar over the cross-validation fits.
+    Returns ``(w (cells, output units), y_min, details, usage, warnings)``; see
+    :func:`identify_lsq`.  With the sparse solver ``w`` may hold negative masses (the caller
+    projects the model to Mp when ``nonnegative``).  ``progress`` shows a bar over the
+    cross-validation fits (dense solver).
     """
-    if levels.size > MAX_LEVELS:
+    if solver not in ("auto", "dense", "sparse"):
+        raise ValueError(f"solver: expected 'auto', 'dense' or 'sparse', got {solver!r}")
+    if solver == "auto":
+        solver = "dense" if levels.size <= DENSE_UP_TO else "sparse"
+    if solver == "dense" and levels.size > MAX_LEVELS:
         raise ValueError(
-            f"levels: at most {MAX_LEVELS} levels for least squares (the normal "
-            f"equations are dense), got {levels.size}"
+            f"levels: at most {MAX_LEVELS} levels for the dense least-squares solver (its "
+            f"normal equations are dense), got {levels.size}; use solver='sparse'"
+        )
+    if levels.size > MAX_SPARSE_LEVELS:
+        raise ValueError(
+            f"levels: at most {MAX_SPARSE_LEVELS} levels for least squares, got {levels.size}"
         )
     if levels.size < 3:
         raise ValueError(f"levels: need at least 3 levels, got {levels.size}")
@@ -562,6 +629,11 @@ def identify_lsq_core(
     if isinstance(delay, bool) or int(delay) != delay or delay < 0:
         raise ValueError(f"delay: need an integer number of samples >= 0, got {delay!r}")
     delay = int(delay)
+    if solver == "sparse":
+        with threadpool_limits(limits=1, user_api="blas"):
+            return _solve_sparse(
+                recordings, levels, lam, auto, folds, nonnegative, initial_state, delay, names
+            )
     n_fits = 1 + folds * (lam.size + (2 if auto else 0)) + 1  # sums, CV fits, final fit
     with progress_bar(n_fits, "least squares", enabled=progress, unit="fit", leave=False) as bar:
         prep = _prepare(recordings, levels, folds, initial_state, delay, names)
@@ -677,8 +749,75 @@ def _solve(
         delay=delay,
         solver_iterations=int(iters),
         timings={**prep.timings, "cross_validation": t1 - t0, "final_fit": t2 - t1},
+        solver="dense",
+        unobserved_nodes=prep.unobserved_nodes,
+        n_nodes=levels.size * (levels.size - 1) // 2,
     )
     return w, float(theta[-1]), details, prep.usage, warnings
+
+
+def _solve_sparse(
+    recordings: Sequence[Any],
+    levels: NDArray[np.float64],
+    lam: NDArray[np.float64],
+    auto: bool,
+    folds: int,
+    nonnegative: bool,
+    initial_state: InitialState,
+    delay: int,
+    names: Sequence[str],
+) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
+    """Run the sparse solver: the branch of :func:`identify_lsq_core` (no bounds inside the fit)."""
+    from .lsq_sparse import difference_matrix, solve_sparse, sparse_rows
+
+    rows = sparse_rows(recordings, levels, folds, initial_state, delay, names)
+    fit = solve_sparse(rows, levels, [float(x) for x in lam], auto)
+    warnings = list(rows.warnings)
+    if not fit.converged:
+        warnings.append(
+            "conjugate gradients stopped at their iteration limit on some solve; the fit is "
+            "approximate"
+        )
+    best = int(np.argmin(fit.cv_sse.sum(axis=1)))
+    if best in (0, fit.lambdas.size - 1) and fit.lambdas.size > 1:
+        edge = "smallest" if best == 0 else "largest"
+        warnings.append(
+            f"cross-validation chose the {edge} lambda tried ({fit.chosen:.3g}); "
+            "extend the lambdas grid"
+        )
+    n_fit = int(fit.count.sum())
+    m = levels.size * (levels.size - 1) // 2
+    if n_fit < m + 1:
+        warnings.append(
+            f"only {n_fit} samples were fitted for {m + 1} parameters (Everett nodes and the "
+            "offset): the fit is underdetermined, so its rms residual says nothing about the "
+            "model (the smoothness penalty decides most of the table); record more samples or "
+            "use fewer levels"
+        )
+    w = np.asarray(difference_matrix(levels.size) @ fit.theta[:-1])
+    details = LsqDetails(
+        lambdas=fit.lambdas,
+        cv_rms=np.sqrt(fit.cv_sse.sum(axis=1) / n_fit),
+        cv_fold_rms=np.sqrt(fit.cv_sse / np.maximum(fit.count, 1)[None, :]),
+        chosen_lambda=fit.chosen,
+        folds=folds,
+        fold_sizes=fit.count.copy(),
+        n_samples=n_fit,
+        n_skipped=rows.n_skipped,
+        n_params=m + 1,
+        n_zero=int(np.count_nonzero(w <= 0.0)),
+        fit_rms=math.sqrt(fit.fit_sse / n_fit),
+        penalty_scale=fit.scale,
+        nonnegative=bool(nonnegative),
+        initial_state=check_policy(initial_state),
+        delay=delay,
+        solver_iterations=fit.iterations,
+        timings=fit.timings,
+        solver="sparse",
+        unobserved_nodes=fit.unobserved_nodes,
+        n_nodes=m,
+    )
+    return w, float(fit.theta[-1]), details, rows.usage, warnings
 
 
 def weights_matrix(levels: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -21,6 +21,7 @@ from ..model import PreisachModel
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
+    from .delay import DelayEstimate
     from .fod_finder import FODData
     from .lsq import LsqDetails
     from .surface_fit import SurfaceFitResult
@@ -213,6 +214,8 @@ class IdentificationReport:
     delay : float
         Output delay (samples) the model was identified and scored with: ``y(k + delay)``
         answers ``u(k)``.
+    delay_estimate : DelayEstimate or None
+        How the delay was estimated when it was not given.
     choice : str
         Why this method ran (``method="auto"``); empty when the caller chose it.
 
@@ -233,6 +236,7 @@ class IdentificationReport:
     input_units: str = "V"
     output_units: str = "V"
     delay: float = 0.0
+    delay_estimate: DelayEstimate | None = field(default=None, repr=False)
     choice: str = ""
 
     def __iter__(self) -> Iterator[Any]:
@@ -264,7 +268,8 @@ class IdentificationReport:
                 if self.negative_cells == 0
                 else f"{self.negative_cells} cells with negative mass (not in Mp)"
             ),
-            f"  output delay: {self.delay:g} samples",
+            f"  output delay: {self.delay:g} samples"
+            + ("" if self.delay_estimate is None else f" ({self.delay_estimate.describe()})"),
             f"  time: {self.elapsed:.3f} s",
             "  data:",
         ]
@@ -340,6 +345,9 @@ class IdentificationReport:
             "input_units": self.input_units,
             "output_units": self.output_units,
             "delay": self.delay,
+            "delay_estimate": None
+            if self.delay_estimate is None
+            else self.delay_estimate.to_dict(),
             "negative_cells": self.negative_cells,
             "elapsed": self.elapsed,
             "data": [d.to_dict() for d in self.data],
