@@ -1,5 +1,9 @@
 """Identification of Preisach models from measured data.
 
+* :func:`identify` picks the method from the data (``method="auto"``: Mayergoyz for FOD/FORC
+  sweeps that cover their grid, least squares otherwise) and estimates the output delay
+  (:func:`estimate_delay`); :func:`identify_forc` and :func:`forc_diagram` read MicroMag FORC
+  files;
 * :func:`find_fod_curves` / :func:`find_forc_curves` find first-order descending (FOD) or
   reversal (FORC) curves in any recording and read them on a grid of levels;
 * :func:`fit_sqrt_surface` identifies the constrained square-root FOD surface of the thesis
@@ -13,7 +17,10 @@
 
 from __future__ import annotations
 
+from .auto import identify, mirror_model, mirror_recording
+from .delay import DelayEstimate, estimate_delay, shift_output
 from .fod_finder import CurveRecord, FODData, find_fod_curves, find_forc_curves
+from .forc_identify import ForcDiagram, forc_diagram, identify_forc
 from .identifiers import (
     identify_fod,
     identify_lsq,
@@ -28,6 +35,8 @@ from .surface_fit import SurfaceFitResult, fit_sqrt_surface, format_table
 __all__ = [
     "CurveRecord",
     "DataUsage",
+    "DelayEstimate",
+    "ForcDiagram",
     "FODData",
     "IdentificationReport",
     "LsqDetails",
@@ -35,12 +44,19 @@ __all__ = [
     "Residuals",
     "SurfaceFitResult",
     "find_fod_curves",
+    "estimate_delay",
     "find_forc_curves",
+    "forc_diagram",
     "fit_sqrt_surface",
     "format_table",
+    "identify",
     "identify_fod",
+    "identify_forc",
     "identify_lsq",
     "identify_surface",
+    "mirror_model",
+    "mirror_recording",
     "project_nonnegative",
+    "shift_output",
     "weight_density",
 ]

@@ -2,7 +2,8 @@
 
 ::
 
-    preisach identify REC [REC ...] -o MODEL [--method fod|surface|lsq] [--levels N] ...
+    preisach identify REC [REC ...] -o MODEL [--method auto|fod|surface|lsq] [--levels N] ...
+    preisach identify FILE.forc -o MODEL                 (a MicroMag FORC measurement)
     preisach verify MODEL REC [REC ...] [--delay D] [--properties] ...
 
 Recordings are read with :meth:`preisach.Recording.load` (``.csv`` or ``.npz``); the model is
@@ -54,35 +55,67 @@ def _save_figure(path: str | None, fig: Any) -> None:
         print(f"wrote {path}")
 
 
+def _delay_arg(text: str) -> float | str:
+    """``--delay``: ``auto`` or a number of samples >= 0 (fractional allowed)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        d = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected 'auto' or a number of samples >= 0, got {text!r}"
+        ) from None
+    if not d >= 0.0 or d == float("inf"):
+        raise argparse.ArgumentTypeError(f"need a number of samples >= 0, got {text!r}")
+    return int(d) if d == int(d) else d
+
+
 def _identify(args: argparse.Namespace) -> int:
-    from .identifiers import identify_fod, identify_lsq, identify_surface
+    from .auto import identify
 
     if args.levels is not None and args.levels < 3:
         raise ValueError(f"--levels: need at least 3 levels, got {args.levels}")
     if args.y_min_source is not None and args.method != "surface":
         raise ValueError("--y-min-source applies to --method surface only")
-    if args.delay < 0:
-        raise ValueError(f"--delay: need a number of samples >= 0, got {args.delay}")
-    recs = _load_recordings(args.recordings)
-    if args.method == "rate":
+    if args.method == "rate":  # the rate-dependent model (identify/rate.py) has no delay
         from .rate import run_cli
 
-        return run_cli(args, recs, _write_json)
-    common = {"name": args.name, "initial_state": args.initial_state, "delay": args.delay}
-    if args.method == "fod":
-        model, report = identify_fod(recs, args.levels, project=args.project, **common)
-    elif args.method == "surface":
-        if args.project:
-            raise ValueError("--project applies to --method fod only")
-        model, report = identify_surface(
-            recs, args.levels, y_min_source=args.y_min_source or "column_mean", **common
+        if args.delay == "auto":
+            args.delay = 0
+        return run_cli(args, _load_recordings(args.recordings), _write_json)
+    if args.project and args.method not in ("fod", "auto"):
+        raise ValueError("--project applies to --method fod only (lsq imposes mu >= 0 itself)")
+    forc = [p for p in args.recordings if Path(p).suffix.lower() == ".forc"]
+    if forc:
+        if len(forc) != len(args.recordings) or len(forc) > 1:
+            raise ValueError("a FORC file (.forc) is identified on its own: give one file")
+        from .forc_identify import identify_forc
+
+        report = identify_forc(
+            forc[0],
+            method=args.method,
+            levels=args.levels,
+            name=args.name,
+            project=args.project,
+            delay=args.delay,
+            folds=args.folds,
+            solver=args.solver,
         )
     else:
-        if args.project:
-            raise ValueError("--project applies to --method fod only (lsq imposes mu >= 0 itself)")
-        model, report = identify_lsq(
-            recs, 41 if args.levels is None else args.levels, folds=args.folds, **common
+        recs = _load_recordings(args.recordings)
+        report = identify(
+            recs,
+            args.method,
+            args.levels,
+            delay=args.delay,
+            initial_state=args.initial_state,
+            name=args.name,
+            project=args.project,
+            folds=args.folds,
+            solver=args.solver,
+            y_min_source=args.y_min_source or "column_mean",
         )
+    model = report.model
     out = Path(args.output)
     if out.parent and not out.parent.exists():
         raise OSError(f"{out.parent}: output folder does not exist")
@@ -142,7 +175,9 @@ def add_parser(subparsers: Any) -> None:
         help="identify a Preisach model from recordings (Mayergoyz, sqrt surface, least squares)",
         description="Identify a Preisach model from recordings (CSV/NPZ with t, u, y in s, V, V), "
         "write it to MODEL (read by PreisachModel.load and every later command) and print the "
-        "report: data used, residuals (V and % of the output range), warnings.",
+        "report: method chosen and why, output delay, data used, residuals (in the recording's "
+        "units and % of the output range), warnings.  A MicroMag FORC file (.forc) is read with "
+        "its units and drift-corrected from its calibration points.",
     )
     p.add_argument("recordings", nargs="+", metavar="REC", help="recording files (.csv or .npz)")
     p.add_argument(
@@ -150,11 +185,13 @@ def add_parser(subparsers: Any) -> None:
     )
     p.add_argument(
         "--method",
-        choices=("fod", "surface", "lsq", "rate"),
-        default="fod",
-        help="fod: Mayergoyz from FOD curves (default); surface: the thesis's square-root "
-        "FOD surface; lsq: least squares on every sample of any excitation; rate: a "
-        "rate-dependent model from recordings at two or more rates",
+        choices=("auto", "fod", "surface", "lsq", "rate"),
+        default="auto",
+        help="auto (default): fod when the recordings hold FOD (or FORC) curves measuring at "
+        "least 90%% of their grid, lsq otherwise, and the report says why; fod: Mayergoyz from "
+        "FOD curves; surface: the thesis's square-root FOD surface; lsq: least squares on "
+        "every sample of any excitation; rate: a rate-dependent model from recordings at two "
+        "or more rates",
     )
     p.add_argument(
         "--levels",
@@ -162,7 +199,14 @@ def add_parser(subparsers: Any) -> None:
         default=None,
         metavar="N",
         help="grid levels: FOD grid for fod/surface (default: inferred from the turning "
-        f"values; at most {MAX_FOD_LEVELS}), table levels for lsq (default 41)",
+        f"values; at most {MAX_FOD_LEVELS}), table levels for lsq (default 41; at most 401)",
+    )
+    p.add_argument(
+        "--solver",
+        choices=("auto", "dense", "sparse"),
+        default="auto",
+        help="lsq: dense (exact mu >= 0, up to 81 levels) or sparse (conjugate gradients on "
+        "the Everett nodes, fine tables); auto (default): dense up to 41 levels",
     )
     p.add_argument(
         "--project",
@@ -180,10 +224,11 @@ def add_parser(subparsers: Any) -> None:
     p.add_argument("--folds", type=int, default=5, help="lsq: cross-validation folds (default 5)")
     p.add_argument(
         "--delay",
-        type=int,
-        default=0,
+        type=_delay_arg,
+        default="auto",
         metavar="D",
-        help="output delay in samples: y[k+D] answers u[k] (default 0)",
+        help="output delay in samples, y[k+D] answers u[k], applied by every method; "
+        "fractional allowed; auto (default): estimated by cross-validation and reported",
     )
     p.add_argument(
         "--initial-state",
@@ -201,8 +246,9 @@ def add_parser(subparsers: Any) -> None:
         "verify",
         help="simulate recordings through a model and print max/RMS errors per experiment",
         description="Simulate each recording's input through MODEL and print the maximum and RMS "
-        "error in volts and in % of the output range per experiment; --properties also tests "
-        "the recordings for the wiping-out and congruent-minor-loop properties.",
+        "error in the recording's units and in % of the output range per experiment; "
+        "--properties also tests the recordings for the wiping-out and congruent-minor-loop "
+        "properties.",
     )
     v.add_argument("model", metavar="MODEL", help="model file written by `preisach identify`")
     v.add_argument("recordings", nargs="+", metavar="REC", help="recording files (.csv or .npz)")
@@ -238,3 +284,59 @@ def add_parser(subparsers: Any) -> None:
     v.add_argument("--json", metavar="PATH", help="also write the table as JSON")
     v.add_argument("--plot", metavar="PNG", help="also write a figure of outputs and errors")
     v.set_defaults(func=_verify)
+
+    f = subparsers.add_parser(
+        "forc",
+        help="FORC diagram of a MicroMag FORC file (local polynomial regression, smoothing SF)",
+        description="Compute the FORC distribution rho = -1/2 d2M/(dHr dH) of a MicroMag .forc "
+        "file by local second-order polynomial regression over (2 SF + 1)^2 points (Pike et al. "
+        "1999), after drift correction from the calibration points, and draw it in "
+        "(H_c, H_u) in the file's units.  Outside the measured band (H < H_r) nothing is "
+        "extrapolated: windows at the edge use their measured points only and rho is not drawn "
+        "there.",
+    )
+    f.add_argument("file", metavar="FILE", help="MicroMag FORC file (.forc)")
+    f.add_argument("--sf", type=int, default=3, metavar="SF", help="smoothing factor (default 3)")
+    f.add_argument(
+        "--no-drift", action="store_true", help="do not correct the drift (calibration points)"
+    )
+    f.add_argument("--plot", metavar="PNG", help="write the FORC diagram figure")
+    f.add_argument("--json", metavar="PATH", help="also write the diagram's summary as JSON")
+    f.set_defaults(func=_forc)
+
+
+def _forc(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .forc_identify import forc_diagram
+
+    if args.sf < 1:
+        raise ValueError(f"--sf: need a smoothing factor >= 1, got {args.sf}")
+    d = forc_diagram(args.file, args.sf, drift=not args.no_drift)
+    ok = np.isfinite(d.rho)
+    k = np.unravel_index(int(np.nanargmax(np.where(ok, d.rho, -np.inf))), d.rho.shape)
+    fu, mu = d.field_units, d.moment_units
+    summary = {
+        "curves": int(d.h_r.size),
+        "smoothing_factor": d.smoothing_factor,
+        "field_units": fu,
+        "moment_units": mu,
+        "points_defined": int(ok.sum()),
+        "points_measured": int(np.isfinite(d.moment).sum()),
+        "peak_rho": float(d.rho[k]),
+        "peak_h_c": float(d.h_c[k]),
+        "peak_h_u": float(d.h_u[k]),
+    }
+    print(
+        f"FORC diagram of {args.file}: {summary['curves']} curves, SF = {d.smoothing_factor}, "
+        f"rho defined at {summary['points_defined']} of {summary['points_measured']} measured "
+        f"points (none outside the measured band H >= H_r)"
+    )
+    print(
+        f"peak rho {summary['peak_rho']:.4g} {mu}/{fu}^2 at H_c = {summary['peak_h_c']:.4g} {fu}, "
+        f"H_u = {summary['peak_h_u']:.4g} {fu}"
+    )
+    _write_json(args.json, summary)
+    if args.plot:
+        _save_figure(args.plot, d.plot())
+    return 0

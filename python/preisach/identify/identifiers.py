@@ -519,7 +519,8 @@ def identify_fod(
     if neg and not project:
         w = np.tril(model.cell_weights())
         warnings.append(
-            f"{neg} cells have negative mass (sum {float(w[w < 0].sum()):.4g} V): the "
+            f"{neg} cells have negative mass (sum {float(w[w < 0].sum()):.4g} "
+            f"{_units(recs)['output_units']}): the "
             "model is not in Mp; project=True gives the nearest model that is"
         )
     rng = _output_range(fd, recs)
