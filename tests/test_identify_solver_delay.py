@@ -97,7 +97,7 @@ def test_the_delay_is_estimated_and_applied_by_every_method():
     est = estimate_delay([late])
     assert est.delay == pytest.approx(3.0, abs=0.5)
     assert list(est.candidates[:4]) == [0.0, 1.0, 2.0, 3.0]
-    rep = identify_fod(late)  # delay estimated by default
+    rep = identify_fod(late, delay="auto")  # (identify() and the CLI estimate by default)
     assert rep.delay == est.delay and rep.delay_estimate is not None
     assert "cross-validation" in rep.summary()
     # --delay is honoured by fod: 0 and 3 give different models, 3 the better one

@@ -437,7 +437,7 @@ def identify_fod(
     gaps: str = "fill",
     name: str = "",
     initial_state: InitialState = "burn-in",
-    delay: Delay = None,
+    delay: Delay = 0,
     **finder_options: Any,
 ) -> IdentificationReport:
     """Mayergoyz identification: FOD curves -> Everett table (thesis §2.6, Eq 2.12-2.14).
@@ -466,8 +466,9 @@ def identify_fod(
         Output delay (samples): ``y(k + delay)`` answers ``u(k)``.  The recordings are shifted
         by it (:func:`~preisach.identify.delay.shift_output`; fractional delays interpolate the
         input) before the FOD curves are found, and the residuals are those of the shifted
-        recordings.  ``None``/``"auto"`` (default): estimated by cross-validation
-        (:func:`~preisach.identify.delay.estimate_delay`); the report gives the estimate.
+        recordings (default 0).  ``None``/``"auto"``: estimated by cross-validation
+        (:func:`~preisach.identify.delay.estimate_delay`; the default of
+        :func:`~preisach.identify.identify` and ``preisach identify``); the report gives it.
     **finder_options
         Passed to :func:`~preisach.identify.find_fod_curves` (``saturation_tol``,
         ``reversal_tol``, ``level_tol``, ``u_min``, ``u_max``).
@@ -555,7 +556,7 @@ def identify_surface(
     y_min_source: str = "column_mean",
     name: str = "",
     initial_state: InitialState = "burn-in",
-    delay: Delay = None,
+    delay: Delay = 0,
     **finder_options: Any,
 ) -> IdentificationReport:
     """Square-root FOD surface identification (thesis §3.3.2, Eq 3.1-3.2), tabulated.
@@ -642,7 +643,7 @@ def identify_lsq(
     lambdas: str | Sequence[float] = "auto",
     folds: int = 5,
     initial_state: InitialState = "burn-in",
-    delay: Delay = None,
+    delay: Delay = 0,
     nonnegative: bool = True,
     u_range: tuple[float, float] | None = None,
     name: str = "",
@@ -674,8 +675,9 @@ def identify_lsq(
     delay : int, float, "auto" or None
         Output delay in samples: ``y[k + delay]`` answers ``u[k]``.  An integer is applied by
         pairing the samples; a fractional one by shifting the recordings
-        (:func:`~preisach.identify.delay.shift_output`).  ``None``/``"auto"`` (default):
-        estimated by cross-validation (:func:`~preisach.identify.delay.estimate_delay`).
+        (:func:`~preisach.identify.delay.shift_output`); default 0.  ``None``/``"auto"``:
+        estimated by cross-validation (:func:`~preisach.identify.delay.estimate_delay`; the
+        default of :func:`~preisach.identify.identify` and ``preisach identify``).
     nonnegative : bool
         Impose ``mu >= 0`` (all cell masses >= 0).
     u_range : (float, float), optional
