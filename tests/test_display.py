@@ -230,3 +230,24 @@ def test_a_figure_that_fails_leaves_a_note_not_an_exception():
 
     html = figure_img(broken, figsize=(2, 2))
     assert "figure not drawn: RuntimeError: no data &lt;here&gt;" in html
+
+
+def test_rate_model_html_shows_its_rates_and_loops():
+    from preisach.rate_model import RateDependentPreisachModel
+
+    m = RateDependentPreisachModel.builtin(levels=21)
+    html = m._repr_html_()
+    c = _parse(html)
+    text = _text(html)
+    knots = ", ".join(f"{v:g}" for v in m.knots)
+    assert f"{m.n_tables} at rates {knots} V/s" in text
+    assert f"τ = {m.tau:g} s" in text and f"[{m.u_min:g}, {m.u_max:g}] V" in text
+    assert len(c.images) == 1 and c.images[0].startswith("data:image/png;base64,")
+
+
+def test_augmented_model_html_lists_the_chain(diagnosis):
+    aug = diagnosis.model
+    text = _text(aug._repr_html_())
+    for b in aug.input_blocks + aug.output_blocks:
+        assert b.describe() in text
+    assert "Preisach model" in text and "21 (cells 210)" in text

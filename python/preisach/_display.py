@@ -4,6 +4,10 @@ Each result class has a one-line ``_repr_html_`` that calls one function here:
 
 * :func:`model_html` - :class:`~preisach.model.PreisachModel`: levels, input and output range,
   a thumbnail of the major loop;
+* :func:`rate_model_html` - :class:`~preisach.rate_model.RateDependentPreisachModel`: its rates,
+  filter and grid, the major loops at each rate;
+* :func:`augmented_model_html` - :class:`~preisach.diagnose.augmented.AugmentedModel`: the chain
+  of physics blocks around the Preisach model;
 * :func:`identification_html` - :class:`~preisach.identify.report.IdentificationReport`;
 * :func:`verification_html` - :class:`~preisach.verify.VerificationTable`;
 * :func:`sweep_html` - :class:`~preisach.experiments.sweep.SweepResult` (Table 5.1 layout);
@@ -26,10 +30,12 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 __all__ = [
+    "augmented_model_html",
     "diagnosis_html",
     "figure_img",
     "identification_html",
     "model_html",
+    "rate_model_html",
     "sweep_html",
     "verification_html",
 ]
@@ -186,6 +192,61 @@ def model_html(model: Any, *, thumbnail: bool = True) -> str:
         f"<div {_BOX}><b>{title}</b>"
         f"<div style='display: flex; gap: 1.5em; align-items: flex-start'>"
         f"<div>{_kv(pairs)}</div><div>{img}</div></div></div>"
+    )
+
+
+def rate_model_html(model: Any, *, thumbnail: bool = True) -> str:
+    """HTML of a RateDependentPreisachModel: rates, filter, grid, the major loop at each rate."""
+    knots = [float(v) for v in model.knots]
+    pairs = [
+        ("tables", f"{model.n_tables} at rates {', '.join(format(v, 'g') for v in knots)} V/s"),
+        ("rate filter", f"first order, &tau; = {_g(model.tau, 'g')} s"),
+        ("levels", str(model.levels.size)),
+        ("input range", f"[{_g(model.u_min, 'g')}, {_g(model.u_max, 'g')}] V"),
+    ]
+
+    def draw(fig: Any) -> None:
+        ax = fig.add_subplot(1, 1, 1)
+        for k, v in enumerate(knots):
+            m = model.at_rate(v)
+            _draw_loop_on(ax, m, f"{v:g} V/s", f"C{k}")
+        ax.set_xlabel("input u (V)", fontsize=8)
+        ax.set_ylabel("output y (V)", fontsize=8)
+        ax.set_title("major loop at each rate", fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=7, frameon=False)
+
+    img = figure_img(draw, figsize=(3.2, 2.4), alt="major loops per rate") if thumbnail else ""
+    title = f"RateDependentPreisachModel {_e(repr(model.name)) if model.name else ''}"
+    return (
+        f"<div {_BOX}><b>{title}</b>"
+        f"<div style='display: flex; gap: 1.5em; align-items: flex-start'>"
+        f"<div>{_kv(pairs)}</div><div>{img}</div></div></div>"
+    )
+
+
+def _draw_loop_on(ax: Any, model: Any, label: str, color: str) -> None:
+    import numpy as np
+
+    up = np.linspace(model.u_min, model.u_max, 200)
+    y = model.simulate(np.r_[up, up[::-1]], model.negative_saturation()).output
+    ax.plot(np.r_[up, up[::-1]], y, color=color, lw=1.0, label=label)
+
+
+def augmented_model_html(model: Any) -> str:
+    """HTML of an AugmentedModel: input blocks, the Preisach model, output blocks, in order."""
+    rows = [[_e("input"), _e(b.describe())] for b in model.input_blocks]
+    core = "Preisach model" + (
+        f" with {_e(model.feedback_blocks[-1].describe())}" if model.feedback_blocks else ""
+    )
+    rows.append(["&rarr;", f"<b>{core}</b> (below)"])
+    rows += [[_e("output"), _e(b.describe())] for b in model.output_blocks]
+    title = f"AugmentedModel {_e(repr(model.name)) if model.name else ''}"
+    return (
+        f"<div {_BOX}><b>{title}</b>"
+        + _table(["side", "block"], rows, numeric_from=2, caption="the chain, input first")
+        + model_html(model.base)
+        + "</div>"
     )
 
 

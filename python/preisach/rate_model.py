@@ -681,6 +681,12 @@ class RateDependentPreisachModel:
 
     __hash__ = None  # type: ignore[assignment]
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: rates, filter, grid and the major loop at each rate."""
+        from ._display import rate_model_html
+
+        return rate_model_html(self)
+
     def __repr__(self) -> str:
         nm = f"{self.name!r}, " if self.name else ""
         knots = ", ".join(f"{v:g}" for v in self.knots)

@@ -272,6 +272,12 @@ class AugmentedModel:
     def __repr__(self) -> str:
         return f"AugmentedModel({self.describe()})"
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: the chain of blocks and the Preisach model with its thumbnail."""
+        from .._display import augmented_model_html
+
+        return augmented_model_html(self)
+
 
 def load_model(path: PathLike) -> PreisachModel | AugmentedModel:
     """Load a model file of either kind: a :class:`PreisachModel` or an :class:`AugmentedModel`.
