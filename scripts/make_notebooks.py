@@ -23,13 +23,12 @@ every committed .ipynb is what this script writes.
 
 from __future__ import annotations
 
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import jupytext
 import nbformat
+from preisach._io import write_text  # atomic: beside the target, fsync, rename
 
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 
@@ -59,19 +58,6 @@ def render(source: Path) -> str:
     return nbformat.writes(nb) + "\n"
 
 
-def _write_atomically(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
 def main(argv: list[str] | None = None) -> int:
     """Write (or with ``--check`` only compare) every notebook; return the exit code."""
     check = "--check" in (sys.argv[1:] if argv is None else argv)
@@ -83,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         stale.append(target)
         if not check:
-            _write_atomically(target, text)
+            write_text(target, text, what="notebook")
         print(("stale: " if check else "wrote: ") + str(target))
     made = {s.with_suffix(".ipynb") for s in sources()}
     orphans = sorted(set(NOTEBOOKS.glob("[0-9][0-9]_*.ipynb")) - made)
