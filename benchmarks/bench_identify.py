@@ -8,14 +8,24 @@ Prints:
   * least squares (identify_lsq) on 1e5 samples of filtered noise with a 41-level table: total
     time with the default lambda search and 5-fold cross-validation, and its stages (target:
     under 10 s), and the rate of the C++ normal-equation accumulation against the simulator.
-The machine is shared with other jobs, so each figure is the best of --repeats runs.
+  * the scaling of least squares (issue 16): identify_lsq with the sparse solver (Everett nodes,
+    conjugate gradients) on filtered noise over a grid of table sizes at fixed samples and of
+    sample counts at fixed levels, the dense solver beside it where it fits, the exponents of
+    time ~ cells^a and time ~ samples^b fitted in this run, and the issue's targets: 41 levels
+    from 1e5 samples (< 1 s) and, with --big, 201 levels (20 100 parameters) from 1e6 samples
+    (< 30 s, < 4 GB; peak resident memory of the process is printed).
+BLAS is held to one thread (threadpoolctl) and the cores this process may use are printed.
+The machine is shared with other jobs, so each figure is the best of --repeats runs, and the
+load average is printed beside it.
 
-Run:  python benchmarks/bench_identify.py [--repeats N] [--samples N] [--levels N]
+Run:  python benchmarks/bench_identify.py [--repeats N] [--samples N] [--levels N] [--big]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import resource
 import time
 
 import numpy as np
@@ -23,6 +33,7 @@ from preisach import PreisachModel, Recording, _core
 from preisach.identify import find_fod_curves, identify_fod, identify_lsq, identify_surface
 from preisach.noise import uniform_filtered_noise
 from preisach.waveforms import fod_sweep
+from threadpoolctl import threadpool_limits
 
 LSB = 10.0 / 2**14
 
@@ -50,8 +61,91 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--samples", type=int, default=100_000)
     ap.add_argument("--levels", type=int, default=41)
+    ap.add_argument("--big", action="store_true", help="also 201 levels from 1e6 samples")
+    ap.add_argument("--skip-fod", action="store_true", help="only the least-squares parts")
     args = ap.parse_args()
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    print(f"cores available: {cores}; BLAS threads: 1; load average {os.getloadavg()[0]:.1f}")
+    with threadpool_limits(limits=1, user_api="blas"):
+        if not args.skip_fod:
+            fod_and_dense(args)
+        scaling(args)
 
+
+def noise_recording(truth: PreisachModel, n: int) -> Recording:
+    u = np.clip(
+        1.3 * uniform_filtered_noise(n * 1e-3, 100.0, seed=5, cutoff=3.0, hold_time=0.1),
+        -100.0,
+        100.0,
+    )
+    return measured(truth, u, 2)
+
+
+def scaling(args: argparse.Namespace) -> None:
+    """Sparse least squares against table size and sample count; exponents; the targets."""
+    truth = PreisachModel.builtin("ss15-1hz")
+    print("\nleast-squares scaling (sparse solver, lambdas 'auto', 5 folds, filtered noise)")
+    print(
+        f"  {'levels':>6} {'params':>7} {'samples':>8} {'sparse s':>9} {'dense s':>8} "
+        f"{'CV rms mV':>9} {'CG it':>6}"
+    )
+    rows = []
+    base = 100_000
+    rec = noise_recording(truth, base)
+    for lv in (21, 41, 81, 121):
+        t_sp, rep = best_of(lambda lv=lv: identify_lsq(rec, lv, solver="sparse"), 1)
+        t_de = float("nan")
+        if lv <= 41:
+            t_de, _ = best_of(lambda lv=lv: identify_lsq(rec, lv, solver="dense"), 1)
+        q = rep.lsq
+        rows.append((lv, q.n_params, base, t_sp))
+        print(
+            f"  {lv:>6} {q.n_params:>7} {base:>8} {t_sp:>9.2f} {t_de:>8.2f} "
+            f"{min(q.cv_rms) * 1e3:>9.4f} {q.solver_iterations:>6}"
+        )
+    for n in (25_000, 50_000, 200_000):
+        r = noise_recording(truth, n)
+        t_sp, rep = best_of(lambda r=r: identify_lsq(r, 41, solver="sparse"), 1)
+        rows.append((41, rep.lsq.n_params, n, t_sp))
+        print(
+            f"  {41:>6} {rep.lsq.n_params:>7} {n:>8} {t_sp:>9.2f} {'':>8} "
+            f"{min(rep.lsq.cv_rms) * 1e3:>9.4f} {rep.lsq.solver_iterations:>6}"
+        )
+    by_cells = [(p, t) for lv, p, n, t in rows if n == base]
+    a = np.polyfit(np.log([p for p, _ in by_cells]), np.log([t for _, t in by_cells]), 1)[0]
+    by_n = [(n, t) for lv, p, n, t in rows if lv == 41]
+    b = np.polyfit(np.log([n for n, _ in by_n]), np.log([t for _, t in by_n]), 1)[0]
+    print(
+        f"  fitted scaling: time ~ parameters^{a:.2f} (1e5 samples), ~ samples^{b:.2f} "
+        f"(41 levels); the dense solver's is parameters^3 (and memory parameters^2)"
+    )
+    t41 = min(t for lv, p, n, t in rows if lv == 41 and n == base)
+    t41d, _ = best_of(lambda: identify_lsq(rec, 41), max(1, args.repeats - 1))
+    print(
+        f"  41 levels from 1e5 samples: default solver {t41d:.2f} s, sparse {t41:.2f} s   "
+        f"target < 1 s: {'met' if t41d < 1.0 else 'MISSED'} (load "
+        f"{os.getloadavg()[0]:.1f})"
+    )
+    if args.big:
+        big = noise_recording(truth, 1_000_000)
+        t_big, rep = best_of(lambda: identify_lsq(big, 201), 1)
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2
+        print(
+            f"  201 levels ({rep.lsq.n_params} parameters) from 1e6 samples: {t_big:.1f} s "
+            f"(stages {', '.join(f'{k} {v:.1f} s' for k, v in rep.lsq.timings.items())}), "
+            f"peak resident memory {peak:.2f} GB   targets < 30 s: "
+            f"{'met' if t_big < 30 else 'MISSED'}, < 4 GB: {'met' if peak < 4 else 'MISSED'} "
+            f"(load {os.getloadavg()[0]:.1f})"
+        )
+        print(
+            f"  chosen lambda {rep.lsq.chosen_lambda:.3g}, CG iterations "
+            f"{rep.lsq.solver_iterations}, projection to Mp moved "
+            f"{100 * rep.projection.fraction_moved if rep.projection else 0.0:.2g} % of the mass"
+        )
+
+
+def fod_and_dense(args: argparse.Namespace) -> None:
+    """The FOD timings and the dense least-squares stages (issue 3)."""
     truth = PreisachModel.builtin("ss15-1hz")
     sweep = measured(truth, fod_sweep().u, 1)
     print(f"FOD sweep recording: {len(sweep)} samples (21 levels, 1 Hz, 1 kHz)")

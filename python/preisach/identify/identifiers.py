@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
 from ..model import PreisachModel
+from ..recording import as_recordings, recording_labels
 from .delay import DelayEstimate, estimate_delay, shift_output
 from .fod_finder import FODData, find_fod_curves
 from .lsq import (
@@ -57,43 +58,13 @@ Data = Union[FODData, Any, Sequence[Any]]
 # helpers
 # ------------------------------------------------------------------------------------------
 def _recordings(data: Any) -> list[Any]:
-    if all(hasattr(data, a) for a in ("t", "u", "y")) and not isinstance(data, np.ndarray):
-        return [data]
-    try:
-        recs = list(data)
-    except TypeError:
-        raise TypeError(
-            f"expected a recording (t, u, y) or a sequence of them, got {type(data).__name__}"
-        ) from None
-    if not recs:
-        raise ValueError("no recordings given")
-    for k, r in enumerate(recs):
-        if not all(hasattr(r, a) for a in ("t", "u", "y")):
-            raise TypeError(
-                f"recordings[{k}]: expected a recording with t, u, y, got {type(r).__name__}"
-            )
-    return recs
-
-
-def _name(rec: Any, k: int) -> str:
-    meta = getattr(rec, "metadata", None) or {}
-    for key in ("experiment", "name"):
-        if key in meta and str(meta[key]):
-            return str(meta[key])
-    return f"recording {k}"
+    """Return the recordings given (paths, Recordings, t/u/y objects) by the package rule."""
+    return list(as_recordings(data))
 
 
 def _unique_names(recs: Sequence[Any]) -> list[str]:
-    names = [_name(r, k) for k, r in enumerate(recs)]
-    seen: dict[str, int] = {}
-    out = []
-    for n in names:
-        if names.count(n) > 1:
-            seen[n] = seen.get(n, 0) + 1
-            out.append(f"{n} #{seen[n]}")
-        else:
-            out.append(n)
-    return out
+    """Return the recordings' labels by the package rule (repeated labels numbered)."""
+    return recording_labels(recs)
 
 
 def _check_lengths(recs: Sequence[Any], names: Sequence[str]) -> None:
