@@ -124,3 +124,12 @@ def test_forc_diagram_cli_and_agreement_with_pyforc(tmp_path, capsys):
     assert np.corrcoef(a, b)[0, 1] > 0.999
     assert np.sqrt(np.mean((a - b) ** 2)) < 0.03 * np.sqrt(np.mean(b**2))
     assert abs(a.max() / b.max() - 1.0) < 0.02
+
+
+@needs_forc
+def test_forc_report_plot_is_labelled_in_the_file_units():
+    from preisach.identify import identify_forc
+
+    fig = identify_forc(PMAGPY_FORC).plot()
+    labels = " ".join(a.get_xlabel() + a.get_ylabel() for a in fig.axes)
+    assert "(T)" in labels and "A m^2" in labels and "(V)" not in labels

@@ -306,7 +306,31 @@ def plot_report(report: IdentificationReport, *, fig: Figure | None = None) -> F
     plot_kappa(m, ax=fig.add_subplot(2, 3, 6))
     fig.suptitle(f"identification ({report.method}): {m.name or 'model'}")
     fig.subplots_adjust(left=0.05, right=0.97, wspace=0.3, hspace=0.3)
+    _relabel_units(fig, report.input_units, report.output_units)
     return fig
+
+
+def _unit_label(text: str, ui: str, uo: str) -> str:
+    """Replace the volts of a panel label by the recording's input/output units."""
+    if "(V" not in text and "V)" not in text:
+        return text
+    if text.startswith("density v"):
+        return text.replace("V/V^2", f"{uo}/({ui})^2")
+    if text.startswith("kappa"):
+        return text.replace("(V/V)", f"({uo}/{ui})")
+    is_output = text.startswith(("output", "RMS", "error"))
+    return text.replace("(V)", f"({uo if is_output else ui})")
+
+
+def _relabel_units(fig: Figure, ui: str, uo: str) -> None:
+    """Label every axis of a figure in the recording's units (the panels are drawn in V)."""
+    if ui == "V" and uo == "V":
+        return
+    for ax in fig.axes:
+        ax.set_xlabel(_unit_label(ax.get_xlabel(), ui, uo))
+        ax.set_ylabel(_unit_label(ax.get_ylabel(), ui, uo))
+        if hasattr(ax, "get_zlabel"):
+            ax.set_zlabel(_unit_label(ax.get_zlabel(), ui, uo))  # type: ignore[attr-defined]
 
 
 def plot_verification(table: VerificationTable, *, fig: Figure | None = None) -> Figure:
