@@ -13,6 +13,10 @@
 #include <thread>
 #include <vector>
 
+#include <csignal>
+
+#include <sys/resource.h>
+
 #include <doctest/doctest.h>
 
 #include <preisach/blocks.hpp>
@@ -322,6 +326,45 @@ TEST_CASE("runner: stop request from another thread, output limits, exceptions r
         CHECK_FALSE(rig.busy());
         std::remove(opt.path.c_str());
     }
+}
+
+TEST_CASE("runner: a failing recording writer stops the loop at once and ramps the output to 0 V") {
+    // A file-size limit makes write() fail with EFBIG after a few hundred rows, as a full disk
+    // (ENOSPC) or a failing one (EIO) would: the writer thread fails while the loop runs.
+    auto rig = make_rig();
+    WaveformController ctl(std::vector<double>(100000, 50.0));  // 100 s at 1 kHz
+    TrialOptions opt;
+    opt.path = tmpfile("full");
+    opt.fsync = false;
+    opt.realtime = true;
+    Safety safety;
+    safety.max_consecutive_missed = -1;
+    rlimit old{};
+    REQUIRE(getrlimit(RLIMIT_FSIZE, &old) == 0);
+    const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit small = old;
+    small.rlim_cur = 16384;
+    REQUIRE(setrlimit(RLIMIT_FSIZE, &small) == 0);
+    TrialRunner runner;
+    bool threw = false;
+    int err = 0;
+    const auto t0 = std::chrono::steady_clock::now();
+    try {
+        runner.run(rig, ctl, opt, safety);
+    } catch (const RecordingIOError& e) {
+        threw = true;
+        err = e.error_code();
+        CHECK(std::string(e.what()).find(opt.path) != std::string::npos);
+    }
+    const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    setrlimit(RLIMIT_FSIZE, &old);
+    std::signal(SIGXFSZ, old_handler);
+    CHECK(threw);
+    CHECK(err == EFBIG);
+    CHECK(took < 5.0);                             // not the 100 s the waveform asks for
+    CHECK(rig.actuator_voltage() == 0.0);          // ramped down although nothing more is logged
+    CHECK_FALSE(rig.busy());
+    std::remove(opt.path.c_str());
 }
 
 TEST_CASE("PI controller regulates the virtual rig to the setpoint") {

@@ -239,3 +239,24 @@ def save_figure(fig: Any, path: PathLike, **savefig_kwargs: Any) -> Path:
     return atomic_write(
         path, lambda f: fig.savefig(f, format=fmt, **savefig_kwargs), binary=True, what="figure"
     )
+
+
+def npz_load_error(exc: BaseException) -> str:
+    """Describe why :func:`numpy.load` could not read a file, for a one-line message.
+
+    numpy's own text for a file that is not an archive advises loading it with
+    ``allow_pickle`` - unsafe for a file of unknown origin, so never repeated here.
+    """
+    import zipfile
+
+    if isinstance(exc, EOFError):
+        return "the file is empty"
+    if isinstance(exc, zipfile.BadZipFile):
+        return f"not a valid .npz archive: truncated or damaged ({exc})"
+    text = str(exc)
+    if "pickle" in text:
+        return (
+            "not an .npz archive (a text file such as a CSV recording, or another format; "
+            "is the order of the arguments right?)"
+        )
+    return text

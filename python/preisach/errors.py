@@ -14,6 +14,8 @@ __all__ = [
     "DeviceError",
     "TrialFileError",
     "TrialInterrupted",
+    "StopSignal",
+    "ResourceLimitError",
 ]
 
 
@@ -33,6 +35,10 @@ class DeviceError(PreisachError, OSError):
     """A DAQ device cannot be opened or used (missing device file, driver call failed)."""
 
 
+class ResourceLimitError(PreisachError, MemoryError):
+    """An array the data asks for would exceed the memory budget; refused before allocating."""
+
+
 class TrialFileError(PreisachError, ValueError):
     """A trial file is invalid; the message lists every error found, one per line."""
 
@@ -44,9 +50,28 @@ class TrialInterrupted(KeyboardInterrupt):
     :class:`preisach.daq.TrialResult` of the interrupted trial (``end_status == "interrupted"``).
     """
 
-    def __init__(self, message: str = "", result: object = None) -> None:
+    def __init__(self, message: str = "", result: object = None, signum: int | None = None) -> None:
         super().__init__(message)
         self.result = result
+        #: The signal (SIGTERM, SIGHUP) that stopped the trial; ``None`` for Ctrl-C.
+        self.signum = signum
+
+
+class StopSignal(KeyboardInterrupt):
+    """SIGTERM or SIGHUP asked the process to stop; handled exactly like Ctrl-C.
+
+    Raised in the main thread by the handlers of :func:`preisach._signals.stop_signals`
+    (installed by ``preisach`` commands and by :func:`preisach.trials.run_trial_file`), so a
+    running trial stops, ramps its output to 0 V and finishes its files.  ``signum`` is the
+    signal's number; the command line exits with ``128 + signum``.
+    """
+
+    def __init__(self, signum: int) -> None:
+        import signal
+
+        self.signum = int(signum)
+        self.signame = signal.Signals(signum).name
+        super().__init__(f"stopped by {self.signame}")
 
 
 class PreisachWarning(UserWarning):

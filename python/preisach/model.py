@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _core
-from ._io import atomic_write
+from ._io import atomic_write, npz_load_error
 from .surface import TABLE_3_1, SqrtSurface
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -583,6 +583,11 @@ class PreisachModel:
         if uu.ndim != 1:
             raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
         s0 = self.anhysteretic_state() if state is None else state
+        if not isinstance(s0, State):
+            raise TypeError(
+                f"state: expected a preisach.State (e.g. model.negative_saturation(), "
+                f"model.positive_saturation(), model.anhysteretic_state()), got {state!r}"
+            )
         tt = None
         if t is not None:
             tt = _real_array("t", t)
@@ -718,8 +723,7 @@ class PreisachModel:
             try:
                 data = np.load(f, allow_pickle=False)
             except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-                what = "the file is empty" if isinstance(exc, EOFError) else str(exc)
-                raise ValueError(f"{p}: not a readable model file ({what})") from exc
+                raise ValueError(f"{p}: not a readable model file ({npz_load_error(exc)})") from exc
             if not hasattr(data, "files"):  # a bare .npy array
                 raise ValueError(f"{p}: not a preisach model file (a single array, not an archive)")
             with data:

@@ -71,7 +71,7 @@ from typing import Any, Protocol, Union, cast, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._io import atomic_write
+from ._io import atomic_write, npz_load_error
 from .errors import PreisachWarning, RecordingFormatError
 
 __all__ = [
@@ -400,13 +400,24 @@ class Recording:
         -----
         preisach.errors.PreisachWarning
             If the last line of a CSV file has no trailing newline (the writer was killed in
-            the middle of a write): that line, and only that line, is dropped.
+            the middle of a write): that line, and only that line, is dropped.  Also if a
+            trial runner's recording (metadata ``planned_samples``) has no ``end_status``:
+            the process was killed before it finished the file.
 
         """
         p = Path(path)
         suffix = p.suffix.lower()
         if suffix == ".csv":
-            return _read_csv(p, os.fspath(path))
+            rec = _read_csv(p, os.fspath(path))
+            if "planned_samples" in rec.metadata and "end_status" not in rec.metadata:
+                warnings.warn(
+                    f"{os.fspath(path)}: a trial recording without end_status: the process "
+                    "writing it stopped before closing it (killed, or still running); its "
+                    f"{len(rec)} rows are what was flushed, the run's outcome is unknown",
+                    PreisachWarning,
+                    stacklevel=2,
+                )
+            return rec
         if suffix == ".npz":
             return _read_npz(p, os.fspath(path))
         raise RecordingFormatError(
@@ -744,7 +755,9 @@ def _read_npz(path: Path, name: str) -> Recording:
     except (FileNotFoundError, IsADirectoryError, PermissionError):
         raise
     except Exception as exc:  # noqa: BLE001 - any other failure means a malformed file
-        raise RecordingFormatError(f"{name}: not a readable NPZ archive ({exc})") from exc
+        raise RecordingFormatError(
+            f"{name}: not a readable NPZ archive ({npz_load_error(exc)})"
+        ) from exc
     if not hasattr(npz, "files"):
         raise RecordingFormatError(f"{name}: a single .npy array, not an NPZ archive")
 

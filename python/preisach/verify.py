@@ -562,8 +562,12 @@ class WipingOutResult:
         lines = [
             f"wiping-out test: {len(self.comparisons)} returns to a reversal value; max "
             f"|dy| = {self.max_difference:.4g} V = {self.max_pct:.3f} % of "
-            f"{self.output_range:.4g} V -> {'PASS' if self.passed else 'FAIL'} "
-            f"(tolerance {self.tolerance:g} %)",
+            f"{self.output_range:.4g} V -> "
+            + (
+                f"{'PASS' if self.passed else 'FAIL'} (tolerance {self.tolerance:g} %)"
+                if self.comparisons
+                else "NOT TESTABLE (no return to a reversal value in this recording)"
+            ),
             f"{'branch':<11} {'level (V)':>10} {'t1 (s)':>9} {'t2 (s)':>9} {'y1 (V)':>10} "
             f"{'y2 (V)':>10} {'dy (V)':>10} {'dy %':>7}",
         ]
@@ -745,7 +749,11 @@ class CongruencyResult:
             f"congruent minor loop test: {self.n_loops} minor loops, {len(self.pairs)} "
             f"comparable pairs; max shape difference {self.max_difference:.4g} V = "
             f"{self.max_pct:.3f} % of {self.output_range:.4g} V -> "
-            f"{'PASS' if self.passed else 'FAIL'} (tolerance {self.tolerance:g} %)",
+            + (
+                f"{'PASS' if self.passed else 'FAIL'} (tolerance {self.tolerance:g} %)"
+                if self.pairs
+                else "NOT TESTABLE (no comparable loop pairs in this recording)"
+            ),
             f"{'low (V)':>9} {'high (V)':>9} {'tA (s)':>9} {'tB (s)':>9} {'shift (V)':>10} "
             f"{'shape (V)':>10} {'shape %':>8}",
         ]

@@ -245,9 +245,9 @@ def run_trial(
         while not done.wait(poll):
             if progress is not None:
                 progress(runner.progress, runner.planned)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP as a StopSignal
         interrupted = True
-        runner.request_stop("interrupted by the user (KeyboardInterrupt)")
+        runner.request_stop(str(exc) or "interrupted by the user (KeyboardInterrupt)")
         finish()
     except BaseException as exc:
         # The progress callback (or anything else in this thread) failed: never leave the

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from collections.abc import Sequence
 from typing import Any, Union
 
@@ -17,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .. import _core
-from .._io import atomic_write
+from .._io import atomic_write, npz_load_error
 from ..model import PreisachModel, SimulationResult, State
 from .effects import EffectBlock, OutputFeedback, RateDependentWidth, effect_from_dict
 
@@ -225,8 +226,11 @@ class AugmentedModel:
         """
         try:
             data = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as exc:
-            raise ValueError(f"{os.fspath(path)}: not a readable model file ({exc})") from exc
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            msg = npz_load_error(exc)
+            raise ValueError(f"{os.fspath(path)}: not a readable model file ({msg})") from exc
+        if not hasattr(data, "files"):  # a bare .npy array
+            raise ValueError(f"{os.fspath(path)}: not a model file (a single array)")
         with data:
             if "format" not in data.files or str(data["format"]) != _FORMAT:
                 raise ValueError(f"{os.fspath(path)}: not an augmented preisach model file")
@@ -289,10 +293,14 @@ def load_model(path: PathLike) -> PreisachModel | AugmentedModel:
 
     """
     try:
-        with np.load(path, allow_pickle=False) as data:
+        data = np.load(path, allow_pickle=False)
+        if not hasattr(data, "files"):  # a bare .npy array
+            raise ValueError("a single array, not an .npz archive")
+        with data:
             fmt = str(data["format"]) if "format" in data.files else ""
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{os.fspath(path)}: not a readable model file ({exc})") from exc
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        msg = npz_load_error(exc)
+        raise ValueError(f"{os.fspath(path)}: not a readable model file ({msg})") from exc
     if fmt == _FORMAT:
         return AugmentedModel.load(path)
     return PreisachModel.load(path)

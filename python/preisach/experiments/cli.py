@@ -90,6 +90,24 @@ def _float_list(text: str) -> list[float]:
     return vals
 
 
+def _gains(text: str) -> list[float]:
+    vals = _float_list(text)
+    bad = [v for v in vals if not (math.isfinite(v) and v >= 0)]
+    if bad:
+        raise argparse.ArgumentTypeError(f"noise gains must be finite and >= 0, got {bad}")
+    return vals
+
+
+def _gain(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"controller gains must be finite and >= 0, got {v:g}")
+    return v
+
+
 def _states(text: str) -> list[str]:
     vals = [v.strip().lower().removeprefix("psi_") for v in text.split(",") if v.strip()]
     bad = [v for v in vals if v not in ("n", "a", "d")]
@@ -270,7 +288,7 @@ def _sweep_options(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--gains",
-        type=_float_list,
+        type=_gains,
         default=list(THESIS_GAINS),
         help="noise gains K_n, comma-separated (default: 0.8,1.6,...,5.6)",
     )
@@ -362,8 +380,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     _common(c)
     _sweep_options(c)
-    c.add_argument("--kp", type=float, default=1.5, help="proportional gain (default: %(default)s)")
-    c.add_argument("--ki", type=float, default=30.0, help="integral gain (default: %(default)s)")
+    c.add_argument("--kp", type=_gain, default=1.5, help="proportional gain (default: %(default)s)")
+    c.add_argument("--ki", type=_gain, default=30.0, help="integral gain (default: %(default)s)")
     c.add_argument(
         "--average",
         type=float,

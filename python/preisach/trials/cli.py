@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -65,6 +66,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from ..cli import EXIT_FAILED, exit_code
+
     bar = None if args.quiet else _ProgressBar()
     try:
         outcome = run_trial_file(
@@ -81,21 +84,31 @@ def _cmd_run(args: argparse.Namespace) -> int:
             bar.close()
         out = exc.result
         if isinstance(out, TrialOutcome):
+            why = (
+                "interrupted"
+                if exc.signum is None
+                else f"stopped by {signal.Signals(exc.signum).name}"
+            )
             print(
-                f"preisach trial: interrupted; recordings and {out.summary_file} are complete "
-                "up to the interrupt",
+                f"preisach trial: {why}; the output was ramped to 0 V; recordings and "
+                f"{out.summary_file} are complete up to the stop",
                 file=sys.stderr,
             )
-        return 130
-    except KeyboardInterrupt:  # between steps, or before the device was opened
+        return exit_code(exc)
+    except KeyboardInterrupt as exc:  # between steps, or before the device was opened
         if bar is not None:
             bar.close()
+        why = str(exc) if getattr(exc, "signum", None) else "interrupted (Ctrl-C)"
         print(
-            f"preisach trial: interrupted (Ctrl-C); the recordings and summary.json written "
-            f"to {args.output} are complete up to the interrupt",
+            f"preisach trial: {why}; the output was ramped to 0 V; the recordings and "
+            f"summary.json written to {args.output} are complete up to the stop",
             file=sys.stderr,
         )
-        return 130
+        return exit_code(exc)
+    except BaseException:
+        if bar is not None:
+            bar.close()
+        raise
     if bar is not None:
         bar.close()
     for s in outcome.steps:
@@ -117,7 +130,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             f"preisach trial: error: step {last.index + 1} ({last.name}) {outcome.end_status}",
             file=sys.stderr,
         )
-        return 1
+        return EXIT_FAILED
     return 0
 
 
@@ -133,8 +146,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     r = sub.add_parser(
         "run",
         help="run a trial file",
-        description="Run a trial file; exits 1 with the reason when a step "
-        "aborts, 130 when interrupted (the files are complete either way).",
+        description="Run a trial file; exits 3 with the reason when a step aborts or a "
+        "recording cannot be written, 130 on Ctrl-C, 129/143 on SIGHUP/SIGTERM (the output is "
+        "ramped to 0 V and the files are complete either way), 1 for a bad file or folder.",
     )
     r.add_argument("file", help="trial file (TOML)")
     r.add_argument("-o", "--output", required=True, help="output folder")
@@ -169,15 +183,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def _main(argv: Sequence[str] | None = None) -> int:
     """``python -m preisach.trials run|check ...`` (the same as ``preisach trial``)."""
+    from ..cli import run_command
+
+    argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(prog="preisach")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     add_parser(sub)
-    args = parser.parse_args(["trial", *(argv if argv is not None else sys.argv[1:])])
-    try:
-        return int(args.func(args))
-    except (ValueError, OSError) as exc:
-        print(f"preisach trial: error: {exc}", file=sys.stderr)
-        return 1
+    args = parser.parse_args(["trial", *(a for a in argv if a != "--debug")])
+    args.debug = "--debug" in argv
+    return run_command("trial", args.func, args)
 
 
 if __name__ == "__main__":  # pragma: no cover

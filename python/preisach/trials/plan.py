@@ -208,6 +208,18 @@ def check_trial(path: str | os.PathLike[str]) -> TrialPlan:
     p, data = _read(path)
     errors = _Errors()
     plan, output_ok = _parse(data, p, errors)
+    models = {st.params["model"] for st in plan.steps if st.params.get("model")}
+    if plan.device.get("kind") == "sim":
+        models.add(plan.device.get("model") or "ss15-1hz")
+    for name in sorted(models):  # what run would load: a built-in name or a model file
+        try:
+            _load_model(name)
+        except (ValueError, OSError) as exc:
+            errors.add(
+                "[device]" if name == plan.device.get("model") else "steps",
+                f"model {name!r} is neither a built-in model ({', '.join(BUILTIN_MODELS)}) "
+                f"nor a readable model file ({exc})",
+            )
     lo, hi = plan.safety["u_limits"]
     slew = plan.safety["slew_rate"]
     ch_lo, ch_hi = sorted(

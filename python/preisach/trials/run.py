@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
+import re
+import signal
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -14,6 +18,7 @@ import numpy as np
 
 from .. import daq
 from .._io import write_json
+from .._signals import StopSignals, stop_signals
 from ..errors import TrialInterrupted
 from .plan import _approach, _load_model, check_trial, step_waveform
 from .schema import PlannedStep, TrialPlan
@@ -115,6 +120,38 @@ def _make_device(plan: TrialPlan, device: str | None) -> Any:
             file, [plan.output], [plan.input], calibration_file=plan.device["calibration_file"]
         )
     raise ValueError(f"device {spec!r}: expected 'sim' or 'comedi:/dev/comediN'")
+
+
+#: The names this runner gives its files: recordings ``NN_<name>.csv`` and ``summary.json``.
+_RUN_FILE = re.compile(r"^(\d{2}_[A-Za-z0-9_-]+\.csv|summary\.json)$")
+
+
+def _previous_run(out: Path) -> list[Path]:
+    """Return the files of an earlier run in ``out`` (``NN_<name>.csv``, ``summary.json``)."""
+    if not out.is_dir():
+        return []
+    return sorted(p for p in out.iterdir() if _RUN_FILE.match(p.name) and not p.is_dir())
+
+
+def _check_folder(out: Path, overwrite: bool) -> list[Path]:
+    """Refuse an output folder that cannot take this run, before anything is written.
+
+    Returns the files of an earlier run that ``overwrite`` will remove.
+    """
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(
+            errno.ENOTDIR, "the output folder is not a directory; nothing was written", str(out)
+        )
+    old = _previous_run(out)
+    if old and not overwrite:
+        names = ", ".join(p.name for p in old[:3]) + (", ..." if len(old) > 3 else "")
+        raise FileExistsError(
+            errno.EEXIST,
+            f"the output folder holds an earlier run ({names}); nothing was written - use "
+            "--overwrite (overwrite=True) to replace it, or another folder",
+            str(out),
+        )
+    return old
 
 
 def _ramp_file(out: Path, number: int, written: set[Path], overwrite: bool) -> Path:
@@ -239,8 +276,26 @@ def run_trial_file(
     """
     plan = check_trial(path)
     out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
+    old = _check_folder(out, overwrite)
     dev = _make_device(plan, device)
+    out.mkdir(parents=True, exist_ok=True)
+    for f in old:  # --overwrite: the folder holds this run only
+        f.unlink()
+    with stop_signals() as stops:
+        return _run(plan, dev, out, stops, realtime, overwrite, fsync, priority, progress)
+
+
+def _run(
+    plan: TrialPlan,
+    dev: Any,
+    out: Path,
+    stops: StopSignals,
+    realtime: bool,
+    overwrite: bool,
+    fsync: bool,
+    priority: int,
+    progress: Callable[[int, int, PlannedStep, int, int], None] | None,
+) -> TrialOutcome:
     safety = plan.safety_limits()
     outcomes: list[StepOutcome] = []
     end_status = "complete"
@@ -252,6 +307,7 @@ def run_trial_file(
     number = 1  # of the step in progress
     written: set[Path] = set()  # recordings of this run, never overwritten by the safety ramp
     safety_ramp: dict[str, Any] | None = None
+    error: BaseException | None = None
     try:
         for i, step in enumerate(plan.steps):
             number = i + 1
@@ -321,6 +377,7 @@ def run_trial_file(
                 end_status = res.end_status
                 break
     except BaseException as exc:
+        error = exc
         end_status = (
             "interrupted"
             if isinstance(exc, KeyboardInterrupt)
@@ -336,7 +393,6 @@ def run_trial_file(
             fsync=fsync,
             priority=priority,
         )
-        raise
     finally:
         doc = {
             "trial": plan.name,
@@ -354,8 +410,30 @@ def run_trial_file(
         }
         if safety_ramp is not None:
             doc["safety_ramp"] = safety_ramp
-        write_json(summary, doc, indent=2, what="trial summary")
+        try:  # what the actuator was left at: 0 V unless the device itself failed
+            doc["final_output"] = float(dev.outputs[0].physical(dev.last_output(0)))
+        except Exception as exc:  # noqa: BLE001 - reported in the summary
+            doc["final_output"] = f"unknown: {type(exc).__name__}: {exc}"
+        if stops.received is not None:
+            doc["stop_signal"] = signal.Signals(stops.received).name
+        try:
+            write_json(summary, doc, indent=2, what="trial summary")
+        except OSError as exc:
+            if error is None and interrupted is None:
+                raise
+            # What stopped the run matters more; the summary's failure goes with it.
+            msg = f"the summary was not written: {exc}"
+            pending = error if error is not None else interrupted
+            if sys.version_info >= (3, 11) and pending is not None:
+                pending.add_note(msg)
+            print(f"preisach trial: {msg}", file=sys.stderr)
+    if error is not None:
+        raise error
     outcome = TrialOutcome(plan, dev.description, end_status, outcomes, str(summary))
     if interrupted is not None:
+        if stops.received is not None:
+            raise TrialInterrupted(
+                f"{interrupted} (stopped by {doc['stop_signal']})", outcome, signum=stops.received
+            )
         raise TrialInterrupted(str(interrupted), outcome)
     return outcome

@@ -324,6 +324,10 @@ public:
                            " s");
                 break;
             }
+            if (writer.failed()) {  // the recording cannot be written: stop actuating now
+                abort_with(writer.error());
+                break;
+            }
             if (stop_.load()) {
                 push(t, u_prev, u_prev, cout_[opt.output], late);
                 end = End::interrupted;
