@@ -326,7 +326,9 @@ def test_version(capsys):
 
 
 def test_internal_error_and_interrupt_exit_codes(tmp_path, capsys, monkeypatch):
-    import preisach.diagnose.cli as dcli
+    import importlib
+
+    core = importlib.import_module("preisach.diagnose.core")  # the CLI imports diagnose from it
 
     model = tmp_path / "m.npz"
     PreisachModel.builtin(levels=11).save(model)
@@ -340,9 +342,8 @@ def test_internal_error_and_interrupt_exit_codes(tmp_path, capsys, monkeypatch):
         calls.append("ctrl-c")
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(preisach.diagnose, "diagnose", interrupted, raising=False)
-    monkeypatch.setattr(dcli, "diagnose", interrupted, raising=False)
-    code = main(["diagnose", str(model), str(rec)])
+    monkeypatch.setattr(core, "diagnose", interrupted)
+    code = main(["diagnose", str(model), str(rec), "--json", str(tmp_path / "d.json")])
     err = capsys.readouterr().err
     assert calls and code == 130
     assert err.count("\n") == 1 and "interrupted" in err and "Traceback" not in err
@@ -350,12 +351,17 @@ def test_internal_error_and_interrupt_exit_codes(tmp_path, capsys, monkeypatch):
     def bug(*a, **k):
         raise ZeroDivisionError("float division by zero")
 
-    monkeypatch.setattr(preisach.diagnose, "diagnose", bug, raising=False)
-    monkeypatch.setattr(dcli, "diagnose", bug, raising=False)
-    assert main(["diagnose", str(model), str(rec)]) == EXIT_INTERNAL
+    monkeypatch.setattr(core, "diagnose", bug)
+    assert (
+        main(["diagnose", str(model), str(rec), "--json", str(tmp_path / "d.json")])
+        == EXIT_INTERNAL
+    )
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "internal error" in err and "--debug" in err
-    assert main(["diagnose", str(model), str(rec), "--debug"]) == EXIT_INTERNAL
+    assert (
+        main(["diagnose", str(model), str(rec), "--json", str(tmp_path / "d.json"), "--debug"])
+        == EXIT_INTERNAL
+    )
     assert "Traceback" in capsys.readouterr().err
 
 
@@ -373,7 +379,10 @@ def test_corrupt_and_swapped_model_files_are_clear_errors(tmp_path, capsys):
         with pytest.raises(ValueError, match="not a") as exc:
             load_model(tmp_path / name)
         assert "pickle" not in str(exc.value) and name in str(exc.value)
-        assert main(["diagnose", str(tmp_path / name), str(rec)]) == 1
+        assert (
+            main(["diagnose", str(tmp_path / name), str(rec), "--json", str(tmp_path / "d.json")])
+            == 1
+        )
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and name in err and "Traceback" not in err
     assert main(["verify", str(rec), str(good)]) == 1  # swapped arguments
@@ -412,7 +421,7 @@ def test_memory_estimate_refuses_before_allocating(tmp_path, monkeypatch):
     t = np.arange(n) * 0.01
     u = 100 * np.sin(2 * np.pi * 0.5 * t)
     m = PreisachModel.builtin(levels=11)
-    rec = Recording.from_arrays(u=u, y=m.simulate(u).y, sample_time=0.01)
+    rec = Recording.from_arrays(u=u, y=m.simulate(u).output, sample_time=0.01)
     t0 = time.monotonic()
     with pytest.raises(ResourceLimitError, match="GiB"):
         diagnose(m, [rec])

@@ -249,7 +249,7 @@ duration = 1.0
     parser = argparse.ArgumentParser(prog="preisach")
     add_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["trial", "run", str(p), "-o", str(tmp_path / "o"), "-q"])
-    assert args.func(args) == 1
+    assert args.func(args) == 3  # EXIT_FAILED: the command ran but could not finish
     err = capsys.readouterr().err
     assert "preisach trial: error: step 2 (hold) aborted: input channel 'V_out' read" in err
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())

@@ -71,7 +71,7 @@ from typing import Any, Protocol, Union, cast, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._io import atomic_write, npz_load_error
+from ._io import atomic_write, check_target, npz_load_error
 from .errors import PreisachWarning, RecordingFormatError
 
 __all__ = [
@@ -750,20 +750,21 @@ def _read_csv(path: Path, name: str) -> Recording:
 
 
 def _read_npz(path: Path, name: str) -> Recording:
+    f = open(path, "rb")  # opened here: np.load leaks its own handle on a bad archive
     try:
-        npz = np.load(path, allow_pickle=False)
-    except (FileNotFoundError, IsADirectoryError, PermissionError):
-        raise
-    except Exception as exc:  # noqa: BLE001 - any other failure means a malformed file
+        npz = np.load(f, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - any failure here means a malformed file
+        f.close()
         raise RecordingFormatError(
             f"{name}: not a readable NPZ archive ({npz_load_error(exc)})"
         ) from exc
     if not hasattr(npz, "files"):
+        f.close()
         raise RecordingFormatError(f"{name}: a single .npy array, not an NPZ archive")
 
     metadata: dict[str, MetaValue] = {}
     cols: dict[str, NDArray[np.float64]] = {}
-    with npz:
+    with f, npz:
         for key in npz.files:
             try:
                 arr = npz[key]
@@ -907,6 +908,8 @@ class RecordingWriter:
         self._n_rows = 0
         self._last_t = -np.inf
         self._status: str | None = None
+        if overwrite:  # never stream into a directory or a device node
+            check_target(self._path, "recording")
         self._file = open(self._path, "w" if overwrite else "x", encoding="utf-8", newline="")
         try:
             self._write(_meta_lines(meta) + ",".join(names) + "\n")

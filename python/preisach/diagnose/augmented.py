@@ -225,13 +225,19 @@ class AugmentedModel:
 
         """
         try:
-            data = np.load(path, allow_pickle=False)
+            f = open(path, "rb")  # opened here: np.load leaks its handle on a bad archive
+        except OSError as exc:
+            raise ValueError(f"{os.fspath(path)}: not a readable model file ({exc})") from exc
+        try:
+            data = np.load(f, allow_pickle=False)
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            f.close()
             msg = npz_load_error(exc)
             raise ValueError(f"{os.fspath(path)}: not a readable model file ({msg})") from exc
         if not hasattr(data, "files"):  # a bare .npy array
+            f.close()
             raise ValueError(f"{os.fspath(path)}: not a model file (a single array)")
-        with data:
+        with f, data:
             if "format" not in data.files or str(data["format"]) != _FORMAT:
                 raise ValueError(f"{os.fspath(path)}: not an augmented preisach model file")
             version = int(data["version"])
@@ -293,11 +299,12 @@ def load_model(path: PathLike) -> PreisachModel | AugmentedModel:
 
     """
     try:
-        data = np.load(path, allow_pickle=False)
-        if not hasattr(data, "files"):  # a bare .npy array
-            raise ValueError("a single array, not an .npz archive")
-        with data:
-            fmt = str(data["format"]) if "format" in data.files else ""
+        with open(path, "rb") as f:  # opened here: np.load leaks its handle on a bad archive
+            data = np.load(f, allow_pickle=False)
+            if not hasattr(data, "files"):  # a bare .npy array
+                raise ValueError("a single array, not an .npz archive")
+            with data:
+                fmt = str(data["format"]) if "format" in data.files else ""
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         msg = npz_load_error(exc)
         raise ValueError(f"{os.fspath(path)}: not a readable model file ({msg})") from exc

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from scipy import interpolate, linalg, optimize
 
 from .. import _core
+from .._resources import check_allocation
 from ..model import PreisachModel
 from .candidates import Candidate
 from .data import Rec
@@ -110,6 +111,13 @@ class Context:
         self.longest_duration = max(float(recs[i].t[-1] - recs[i].t[0]) for i in self.diag)
         self.max_delay = float(max_delay) if max_delay is not None else max(0.05, 10 * self.dt_min)
         self.drift_knot_spacing = float(np.clip(self.longest_duration / 6.0, 1.5, 10.0))
+        for i, r in enumerate(recs):  # the dense drift bases (drift_basis): estimate first
+            cols = math.ceil(max(float(r.t[-1] - r.t[0]), 1e-9) / self.drift_knot_spacing) + 3
+            check_allocation(
+                8.0 * r.t.size * cols,
+                f"the drift basis of recording {i} ({r.t.size} samples x {cols} knots)",
+                "diagnose a shorter stretch (split the recording) or decimate it",
+            )
         self.drift_smoothing = float(drift_smoothing)
         self.max_fit_samples = max_fit_samples
         self.alternations = int(alternations)
