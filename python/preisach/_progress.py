@@ -67,7 +67,7 @@ def progress_bar(
     *,
     enabled: bool = True,
     unit: str = "it",
-    leave: bool = True,
+    leave: bool | None = None,
     file: Any = None,
     log_interval: float = 10.0,
     delay: float = 2.0,
@@ -84,8 +84,9 @@ def progress_bar(
         ``False`` returns a disabled bar: every method works and nothing is drawn.
     unit : str
         Name of one unit (``"trial"``, ``"fit"``, ``"sample"``).
-    leave : bool
-        Keep the finished bar on screen.
+    leave : bool, optional
+        Keep the finished bar on screen; default: only when it is not nested in another bar
+        (a sweep inside ``preisach demo`` disappears when done, the demo's own bar stays).
     file : file-like, optional
         Where a text bar goes; default ``sys.stderr``.
     log_interval : float
