@@ -251,3 +251,28 @@ def test_augmented_model_html_lists_the_chain(diagnosis):
     for b in aug.input_blocks + aug.output_blocks:
         assert b.describe() in text
     assert "Preisach model" in text and "21 (cells 210)" in text
+
+
+def test_property_test_html_pass_fail_and_not_testable(model):
+    from preisach.verify import congruency_metric, wiping_out_metric
+    from preisach.waveforms import cml_input, wiping_out_input
+
+    def rec(u, extra=0.0):
+        y = model.simulate(u, model.negative_saturation()).output + extra
+        return Recording.from_arrays(u=u, y=y, sample_time=1e-3)
+
+    u = wiping_out_input(1.0).u
+    ok = wiping_out_metric(rec(u), branches="ascending")
+    text = _text(ok._repr_html_())
+    assert "Wiping-out: 3 returns" in text and "pass: max |dy|" in text
+    assert f"{ok.max_pct:.3f} %" in text and "100" in text
+    drifting = wiping_out_metric(rec(u, np.arange(u.size) / u.size), branches="ascending")
+    assert "fail: max |dy|" in _text(drifting._repr_html_())
+    flat = wiping_out_metric(
+        Recording.from_arrays(u=np.linspace(0, 1, 50), y=np.linspace(0, 2, 50), sample_time=1e-3)
+    )
+    assert "not testable" in _text(flat._repr_html_())
+    cml = congruency_metric(rec(cml_input(frequency=1.0).u))
+    text = _text(cml._repr_html_())
+    assert f"Congruent minor loops: {cml.n_loops} loops, {len(cml.pairs)} comparable" in text
+    assert ("pass" if cml.passed else "fail") in text

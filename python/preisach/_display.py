@@ -9,7 +9,9 @@ Each result class has a one-line ``_repr_html_`` that calls one function here:
 * :func:`augmented_model_html` - :class:`~preisach.diagnose.augmented.AugmentedModel`: the chain
   of physics blocks around the Preisach model;
 * :func:`identification_html` - :class:`~preisach.identify.report.IdentificationReport`;
-* :func:`verification_html` - :class:`~preisach.verify.VerificationTable`;
+* :func:`verification_html` - :class:`~preisach.verify.VerificationTable`, and
+  :func:`property_test_html` - the wiping-out and congruency tests of the data
+  (:class:`~preisach.verify.WipingOutResult`, :class:`~preisach.verify.CongruencyResult`);
 * :func:`sweep_html` - :class:`~preisach.experiments.sweep.SweepResult` (Table 5.1 layout);
 * :func:`diagnosis_html` - :class:`~preisach.diagnose.report.DiagnosisReport`.
 
@@ -35,6 +37,7 @@ __all__ = [
     "figure_img",
     "identification_html",
     "model_html",
+    "property_test_html",
     "rate_model_html",
     "sweep_html",
     "verification_html",
@@ -365,6 +368,48 @@ def verification_html(table: Any) -> str:
         f"<div {_BOX}><b>{title}</b>"
         + _table(header, rows, row_styles=styles, caption="model &minus; measurement")
         + _warnings(notes)
+        + "</div>"
+    )
+
+
+def property_test_html(result: Any) -> str:
+    """HTML of a wiping-out or congruent-minor-loop test of recorded data: verdict, comparisons."""
+    rng = result.output_range
+    if hasattr(result, "pairs"):  # CongruencyResult
+        title = (
+            f"Congruent minor loops: {result.n_loops} loops, {len(result.pairs)} comparable pairs"
+        )
+        what = "max shape difference"
+        header = ["low (V)", "high (V)", "t<sub>A</sub> (s)", "t<sub>B</sub> (s)", "shift (V)",
+                  "shape difference (V)", "% of range"]  # fmt: skip
+        rows = [
+            [_g(p.low), _g(p.high), _g(p.t_a), _g(p.t_b), _g(p.shift), _g(p.shape_difference),
+             _g(100 * p.shape_difference / rng, ".3f")]
+            for p in result.pairs
+        ]  # fmt: skip
+        tested = bool(result.pairs)
+    else:  # WipingOutResult
+        title = f"Wiping-out: {len(result.comparisons)} returns to a reversal value"
+        what = "max |dy|"
+        header = ["branch", "level (V)", "t<sub>1</sub> (s)", "t<sub>2</sub> (s)",
+                  "y<sub>1</sub> (V)", "y<sub>2</sub> (V)", "dy (V)", "% of range"]  # fmt: skip
+        rows = [
+            [_e(c.kind), _g(c.level), _g(c.t_first), _g(c.t_return), _g(c.y_first, ".5g"),
+             _g(c.y_return, ".5g"), _g(c.difference), _g(100 * c.difference / rng, ".3f")]
+            for c in result.comparisons
+        ]  # fmt: skip
+        tested = bool(result.comparisons)
+    if not tested:
+        verdict = f"<span {_BAD}>not testable</span> (nothing to compare in this recording)"
+    else:
+        word = f"<span {_GOOD}>pass</span>" if result.passed else f"<span {_BAD}>fail</span>"
+        verdict = (
+            f"{word}: {what} {_g(result.max_difference)} V = {_g(result.max_pct, '.3f')} % of "
+            f"{_g(rng)} V (tolerance {_g(result.tolerance, 'g')} %)"
+        )
+    return (
+        f"<div {_BOX}><b>{title}</b><div>{verdict}</div>"
+        + (_table(header, rows, numeric_from=0) if rows else "")
         + "</div>"
     )
 

@@ -579,6 +579,12 @@ class WipingOutResult:
             )
         return "\n".join(lines)
 
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: the verdict and the comparisons."""
+        from ._display import property_test_html
+
+        return property_test_html(self)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly form."""
         return {
@@ -764,6 +770,12 @@ class CongruencyResult:
                 f"{100 * p.shape_difference / self.output_range:>8.3f}"
             )
         return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: the verdict and the comparisons."""
+        from ._display import property_test_html
+
+        return property_test_html(self)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly form."""
