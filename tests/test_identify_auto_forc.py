@@ -63,6 +63,9 @@ def test_cli_delay_is_honoured_by_fod(truth, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "output delay: 2 samples" in text
     assert not np.array_equal(models["0"].table.values, models["2"].table.values)
+    # verify uses the delay stored in the model file unless --delay says otherwise
+    assert main(["verify", str(tmp_path / "m2.npz"), str(f)]) == 0
+    assert "output delay 2 samples (stored in" in capsys.readouterr().out
     with pytest.raises(SystemExit) as exc:
         main(["identify", str(f), "-o", str(tmp_path / "x.npz"), "--delay", "soon"])
     assert exc.value.code == 2

@@ -70,6 +70,14 @@ def _delay_arg(text: str) -> float | str:
     return int(d) if d == int(d) else d
 
 
+def _delay_number(text: str) -> float:
+    """``verify --delay``: a number of samples >= 0."""
+    d = _delay_arg(text)
+    if isinstance(d, str):
+        raise argparse.ArgumentTypeError("give the delay in samples (verify does not estimate it)")
+    return float(d)
+
+
 def _identify(args: argparse.Namespace) -> int:
     from .auto import identify
 
@@ -131,20 +139,28 @@ def _identify(args: argparse.Namespace) -> int:
 def _verify(args: argparse.Namespace) -> int:
     from ..model import PreisachModel
     from ..verify import congruency_metric, verify, wiping_out_metric
+    from .delay import shift_output
 
-    if args.delay < 0:
-        raise ValueError(f"--delay: need a number of samples >= 0, got {args.delay}")
     model = PreisachModel.load(args.model)
     if not model.name:
         model.name = Path(args.model).stem
     recs = _load_recordings(args.recordings)
+    delay = args.delay
+    if delay is None:  # the delay the model was identified with (0 for older model files)
+        stored = model.metadata.get("delay", 0)
+        delay = float(stored) if isinstance(stored, (int, float)) else 0.0
+        if delay:
+            print(f"output delay {delay:g} samples (stored in {args.model}; --delay overrides)")
+    if delay != int(delay):  # fractional: pair the samples by shifting the recordings
+        recs = [shift_output(r, delay) for r in recs]
+        delay = 0
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         table = verify(
             model,
             recs,
             initial_state=args.initial_state,
-            delay=args.delay,
+            delay=int(delay),
             output_range=args.output_range,
         )
     for w in caught:  # e.g. inputs outside the model's range (the "clamped" column)
@@ -253,7 +269,12 @@ def add_parser(subparsers: Any) -> None:
     v.add_argument("model", metavar="MODEL", help="model file written by `preisach identify`")
     v.add_argument("recordings", nargs="+", metavar="REC", help="recording files (.csv or .npz)")
     v.add_argument(
-        "--delay", type=int, default=0, metavar="D", help="output delay in samples (default 0)"
+        "--delay",
+        type=_delay_number,
+        default=None,
+        metavar="D",
+        help="output delay in samples, fractional allowed (default: the delay stored in MODEL "
+        "by `preisach identify`, 0 for older files)",
     )
     v.add_argument(
         "--initial-state",
