@@ -45,6 +45,13 @@ def measured(model: PreisachModel, u: np.ndarray, seed: int, state=None) -> Reco
     return Recording.from_arrays(u=u, y=y, sample_time=1e-3)
 
 
+def cpu_of(fn) -> tuple[float, float, object]:
+    """Wall and CPU seconds of one call (CPU: this process's work, whatever the load)."""
+    w0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return time.perf_counter() - w0, time.process_time() - c0, out
+
+
 def best_of(fn, repeats: int) -> tuple[float, object]:
     best, out = np.inf, None
     for _ in range(repeats):
@@ -85,41 +92,43 @@ def scaling(args: argparse.Namespace) -> None:
     """Sparse least squares against table size and sample count; exponents; the targets."""
     truth = PreisachModel.builtin("ss15-1hz")
     print("\nleast-squares scaling (sparse solver, lambdas 'auto', 5 folds, filtered noise)")
+    print("  (wall seconds, and CPU seconds of this process: the work, whatever the load)")
     print(
-        f"  {'levels':>6} {'params':>7} {'samples':>8} {'sparse s':>9} {'dense s':>8} "
-        f"{'CV rms mV':>9} {'CG it':>6}"
+        f"  {'levels':>6} {'params':>7} {'samples':>8} {'sparse wall':>11} {'cpu':>6} "
+        f"{'dense wall':>10} {'cpu':>6} {'CV rms mV':>9} {'CG it':>6}"
     )
     rows = []
     base = 100_000
     rec = noise_recording(truth, base)
     for lv in (21, 41, 81, 121):
-        t_sp, rep = best_of(lambda lv=lv: identify_lsq(rec, lv, solver="sparse"), 1)
-        t_de = float("nan")
+        t_sp, c_sp, rep = cpu_of(lambda lv=lv: identify_lsq(rec, lv, solver="sparse"))
+        t_de = c_de = float("nan")
         if lv <= 41:
-            t_de, _ = best_of(lambda lv=lv: identify_lsq(rec, lv, solver="dense"), 1)
+            t_de, c_de, _ = cpu_of(lambda lv=lv: identify_lsq(rec, lv, solver="dense"))
         q = rep.lsq
-        rows.append((lv, q.n_params, base, t_sp))
+        rows.append((lv, q.n_params, base, t_sp, c_sp))
         print(
-            f"  {lv:>6} {q.n_params:>7} {base:>8} {t_sp:>9.2f} {t_de:>8.2f} "
-            f"{min(q.cv_rms) * 1e3:>9.4f} {q.solver_iterations:>6}"
+            f"  {lv:>6} {q.n_params:>7} {base:>8} {t_sp:>11.2f} {c_sp:>6.2f} {t_de:>10.2f} "
+            f"{c_de:>6.2f} {min(q.cv_rms) * 1e3:>9.4f} {q.solver_iterations:>6}"
         )
     for n in (25_000, 50_000, 200_000):
         r = noise_recording(truth, n)
-        t_sp, rep = best_of(lambda r=r: identify_lsq(r, 41, solver="sparse"), 1)
-        rows.append((41, rep.lsq.n_params, n, t_sp))
+        t_sp, c_sp, rep = cpu_of(lambda r=r: identify_lsq(r, 41, solver="sparse"))
+        rows.append((41, rep.lsq.n_params, n, t_sp, c_sp))
         print(
-            f"  {41:>6} {rep.lsq.n_params:>7} {n:>8} {t_sp:>9.2f} {'':>8} "
-            f"{min(rep.lsq.cv_rms) * 1e3:>9.4f} {rep.lsq.solver_iterations:>6}"
+            f"  {41:>6} {rep.lsq.n_params:>7} {n:>8} {t_sp:>11.2f} {c_sp:>6.2f} {'':>10} "
+            f"{'':>6} {min(rep.lsq.cv_rms) * 1e3:>9.4f} {rep.lsq.solver_iterations:>6}"
         )
-    by_cells = [(p, t) for lv, p, n, t in rows if n == base]
-    a = np.polyfit(np.log([p for p, _ in by_cells]), np.log([t for _, t in by_cells]), 1)[0]
-    by_n = [(n, t) for lv, p, n, t in rows if lv == 41]
-    b = np.polyfit(np.log([n for n, _ in by_n]), np.log([t for _, t in by_n]), 1)[0]
-    print(
-        f"  fitted scaling: time ~ parameters^{a:.2f} (1e5 samples), ~ samples^{b:.2f} "
-        f"(41 levels); the dense solver's is parameters^3 (and memory parameters^2)"
-    )
-    t41 = min(t for lv, p, n, t in rows if lv == 41 and n == base)
+    for k, what in ((3, "wall"), (4, "CPU")):
+        by_p = [(r[1], r[k]) for r in rows if r[2] == base]
+        by_n = [(r[2], r[k]) for r in rows if r[0] == 41]
+        a = np.polyfit(np.log([p for p, _ in by_p]), np.log([t for _, t in by_p]), 1)[0]
+        b = np.polyfit(np.log([n for n, _ in by_n]), np.log([t for _, t in by_n]), 1)[0]
+        print(
+            f"  fitted scaling ({what} time): ~ parameters^{a:.2f} at 1e5 samples, "
+            f"~ samples^{b:.2f} at 41 levels (dense solver: parameters^3, memory parameters^2)"
+        )
+    t41 = min(r[3] for r in rows if r[0] == 41 and r[2] == base)
     t41d, _ = best_of(lambda: identify_lsq(rec, 41), max(1, args.repeats - 1))
     print(
         f"  41 levels from 1e5 samples: default solver {t41d:.2f} s, sparse {t41:.2f} s   "

@@ -136,3 +136,11 @@ def test_forc_report_plot_is_labelled_in_the_file_units():
     fig = identify_forc(PMAGPY_FORC).plot()
     labels = " ".join(a.get_xlabel() + a.get_ylabel() for a in fig.axes)
     assert "(T)" in labels and "A m^2" in labels and "(V)" not in labels
+
+
+def test_verification_table_in_the_recording_units(truth):
+    from preisach.verify import verify
+
+    rec = _rec(truth, fod_sweep().u[:3000], 6, output_units="um")
+    text = verify(truth, rec).table()
+    assert "rms (um)" in text and "(V)" not in text

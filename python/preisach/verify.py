@@ -254,12 +254,15 @@ class VerificationTable:
     model_name : str
     predictions : list of Prediction
         The simulations behind the rows (for :meth:`plot`).
+    output_units : str
+        Units of the errors (the recordings' ``output_units`` metadata, ``"V"`` when absent).
 
     """
 
     rows: list[VerificationRow]
     model_name: str = ""
     predictions: list[Prediction] = field(default_factory=list, repr=False)
+    output_units: str = "V"
 
     @property
     def max_pct(self) -> float:
@@ -272,9 +275,11 @@ class VerificationTable:
         ``mean`` is the bias (model - measurement); ``clamped`` counts the input samples
         outside the model's input range (clamped to it by the simulation).
         """
+        u = self.output_units
         head = (
-            f"{'experiment':<24} {'samples':>8} {'clamped':>8} {'max (V)':>10} {'rms (V)':>10} "
-            f"{'mean (V)':>10} {'range (V)':>10} {'max %':>8} {'rms %':>8}"
+            f"{'experiment':<24} {'samples':>8} {'clamped':>8} {f'max ({u})':>10} "
+            f"{f'rms ({u})':>10} {f'mean ({u})':>10} {f'range ({u})':>10} {'max %':>8} "
+            f"{'rms %':>8}"
         )
         lines = [f"verification of {self.model_name or 'model'}", head, "-" * len(head)]
         for r in self.rows:
@@ -388,7 +393,8 @@ def verify(
             )
         )
         preds.append(p)
-    return VerificationTable(rows, model.name, preds)
+    units = sorted({str(r.metadata.get("output_units", "V")) or "V" for r in recs})
+    return VerificationTable(rows, model.name, preds, output_units=" / ".join(units) or "V")
 
 
 # ------------------------------------------------------------------------------------------
