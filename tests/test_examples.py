@@ -65,7 +65,17 @@ def _check_diagnose(out, d):
     assert load_model(d / "augmented.npz") is not None
 
 
+def _check_compensate(out, d):
+    runs = {
+        (r["reference"], r["mode"]): r
+        for r in json.loads((d / "tracking.json").read_text())["runs"]
+    }
+    ff, lin = runs[("sine-1Hz", "feedforward")], runs[("sine-1Hz", "uncompensated")]
+    assert ff["max_error_pct"] <= 1.0 and 10 * ff["max_error_pct"] <= lin["max_error_pct"]
+
+
 CHECKS = {
+    "compensate": _check_compensate,
     "identify_from_csv": _check_identify_from_csv,
     "simulate": _check_simulate,
     "drift_sweep": _check_drift_sweep,

@@ -17,6 +17,7 @@ using InArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 void register_everett(py::module_& m);
 void register_state(py::module_& m);
 void register_simulator(py::module_& m);
+void register_inverse(py::module_& m);
 void register_control(py::module_& m);
 void register_identify(py::module_& m);
 void register_diagnose(py::module_& m);

@@ -6,6 +6,7 @@ PYBIND11_MODULE(_core, m) {
     register_everett(m);
     register_state(m);
     register_simulator(m);
+    register_inverse(m);
     register_control(m);
     register_identify(m);
     register_diagnose(m);

@@ -40,11 +40,12 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     from . import demo, trials
+    from .compensate import cli as compensate_cli
     from .diagnose import cli as diagnose_cli
     from .experiments import cli as experiments_cli
     from .identify import cli as identify_cli
 
-    for module in (demo, identify_cli, experiments_cli, trials, diagnose_cli):
+    for module in (demo, identify_cli, experiments_cli, trials, diagnose_cli, compensate_cli):
         module.add_parser(sub)
     return p
 

@@ -33,6 +33,8 @@ from .surface import TABLE_3_1, SqrtSurface
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
+    from .compensate import InverseResult
+
 __all__ = [
     "BUILTIN_MODELS",
     "BatchResult",
@@ -538,6 +540,33 @@ class PreisachModel:
     def simulator(self, state: State | None = None) -> _core.Simulator:
         """Return a step-by-step simulator (``step(u)``, ``run(u)``, ``state``, ``slopes()``)."""
         return _core.Simulator(self._table, self.anhysteretic_state() if state is None else state)
+
+    def inverse(
+        self,
+        y_ref: ArrayLike,
+        state: State | None = None,
+        t: ArrayLike | None = None,
+        **kwargs: Any,
+    ) -> InverseResult:
+        """Input (V) that makes the output follow ``y_ref`` (V): the exact inverse.
+
+        ``simulate(r.input, state).output`` reproduces ``y_ref`` wherever it is reachable;
+        unreachable targets get the nearest output and are counted.  See
+        :func:`preisach.compensate.invert` for the parameters (``sample_time``,
+        ``nonmonotone``).
+        """
+        from .compensate import invert
+
+        return invert(self, y_ref, state, t, **kwargs)
+
+    def inverter(self, state: State | None = None, **kwargs: Any) -> _core.Inverter:
+        """Target-by-target inverse: ``step(y)`` returns the input (V).
+
+        See :func:`preisach.compensate.inverter`.
+        """
+        from .compensate import inverter
+
+        return inverter(self, state, **kwargs)
 
     def _policy(self, out_of_range: str | None) -> str:
         pol = self.out_of_range if out_of_range is None else out_of_range

@@ -10,6 +10,7 @@
 //   identify.hpp   Mayergoyz identification (FOD grid -> Everett table, weights mu, kappa)
 //   regressor.hpp  the output as a linear function of the Everett table (least squares)
 //   neutral.hpp    locus of neutral states N(l) and its inverse (Eq 2.18-2.20)
+//   inverse.hpp    exact inverse: the input that drives the output to a target (feedforward)
 //   control.hpp    discrete PI regulation of a model (chapter 5)
 //   play.hpp, moving.hpp   rate-dependent play and output-feedback (moving) models, for diagnosis
 //   rate_dependent.hpp  K Everett tables blended by a filtered input rate, one shared boundary
@@ -23,6 +24,7 @@
 #include "daq.hpp"
 #include "everett.hpp"
 #include "identify.hpp"
+#include "inverse.hpp"
 #include "memory.hpp"
 #include "moving.hpp"
 #include "neutral.hpp"

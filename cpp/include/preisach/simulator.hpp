@@ -160,6 +160,8 @@ public:
     }
 
 private:
+    friend class Inverter;  // inverse.hpp reads the stack to search an excursion, then steps
+
     struct Node {
         Piece p;
         double S;    // sum of the contributions of the pieces below this one

@@ -411,4 +411,5 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="cell masses down to -TOL (V) count as non-negative (default: %(default)s)",
     )
     loc.set_defaults(func=_run_locus)
+    __import__("preisach.compensate.cli", fromlist=["cli"]).add_tracking_parser(sub)
     return exp
