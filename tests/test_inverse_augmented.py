@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from preisach import AugmentedModel, PreisachModel
 from preisach.compensate.augmented import invert_augmented
-from preisach.diagnose.blocks import (
-    Creep,
+from preisach.diagnose.effects import (
     FirstOrderInputLag,
     FractionalDelay,
     GainOffset,
     OutputFeedback,
-    StructuralMode,
+    PronyCreep,
+    SecondOrderMode,
 )
 
 DT = 1e-3
@@ -51,8 +51,8 @@ def test_delay_by_preview_is_exact(tau):
 def test_full_chain_beats_the_classical_inverse():
     blocks = [
         FirstOrderInputLag(DT, tau=2e-3),
-        StructuralMode(DT, f_n=120.0, zeta=0.05, participation=0.6),
-        Creep(DT, taus=[0.05, 0.5], weights=[0.03, 0.02], gain=1.0),
+        SecondOrderMode(DT, f_n=120.0, zeta=0.05, participation=0.6),
+        PronyCreep(DT, taus=[0.05, 0.5], weights=[0.03, 0.02], gain=1.0),
         GainOffset(DT, gain=1.05, offset=0.1),
         FractionalDelay(DT, tau=1.5e-3),
     ]
@@ -69,7 +69,7 @@ def test_full_chain_beats_the_classical_inverse():
 
 
 def test_mode_seen_fully_is_band_limited_and_stated():
-    model = AugmentedModel(BASE, [StructuralMode(DT, f_n=150.0, zeta=0.02, participation=1.0)])
+    model = AugmentedModel(BASE, [SecondOrderMode(DT, f_n=150.0, zeta=0.02, participation=1.0)])
     s0 = BASE.negative_saturation()
     y = from_steady(BASE.y_min, f=1.0)
     r = invert_augmented(model, y, s0, sample_time=DT)

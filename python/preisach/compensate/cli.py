@@ -179,10 +179,8 @@ def _load_any_model(name: str) -> Any:
 
 
 def _tracking(args: argparse.Namespace) -> int:
-    import json
-
     from .. import daq
-    from ..recording import _atomic_write
+    from .._io import save_figure, write_json
     from .rig import identify_from_device
     from .tracking import MODES, device_loop, run_tracking, tracking_references
 
@@ -218,15 +216,13 @@ def _tracking(args: argparse.Namespace) -> int:
     result.settings.update({"device": where, "model": model_desc})
     print(f"tracking on {where}; model {model_desc}; stroke {result.stroke:.4g} V")
     print(result.table())
-    text = json.dumps(result.to_dict(), indent=2, default=float) + "\n"
-    _atomic_write(Path(args.json), lambda f: f.write(text), binary=False)
+    write_json(args.json, result.to_dict(), indent=2, default=float)
     print(f"wrote {args.json}")
     if args.plot:
         import matplotlib
 
         matplotlib.use("Agg")
-        fig = result.plot()
-        fig.savefig(args.plot, dpi=100)
+        save_figure(result.plot(), args.plot, dpi=100)
         print(f"wrote {args.plot}")
     return 0
 
@@ -237,7 +233,7 @@ def add_tracking_parser(sub: Any) -> None:
         "tracking",
         help="tracking error: uncompensated, feedforward (inverse model), PI, PI + feedforward",
         description="Run references (sines, a triangle, random reversals, the FOD pattern) "
-        "four ways on a device and report the max and RMS tracking error in %% of the "
+        "four ways on a device and report the max and RMS tracking error in % of the "
         "stroke and the PI control effort (Eq 5.3).",
     )
     p.add_argument(
