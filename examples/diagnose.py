@@ -25,9 +25,9 @@ import sys
 from pathlib import Path
 
 from preisach import diagnose
-from preisach.studies.diagnosis_cases import make_case
 from preisach.identify import identify_fod
 from preisach.recording import Recording
+from preisach.studies.diagnosis_cases import make_case
 
 kind = sys.argv[1] if len(sys.argv) > 1 else "delay"
 make_case(kind, seed=31, scale=0.3, effect_size=3.5).save("case")
