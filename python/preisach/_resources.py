@@ -66,7 +66,13 @@ def check_allocation(nbytes: float, what: str, hint: str = "") -> None:
     budget = memory_budget()
     if nbytes > budget:
         raise ResourceLimitError(
-            f"{what} would need {nbytes / _GIB:.1f} GiB, more than the "
-            f"{budget / _GIB:.1f} GiB allowed (half the free memory, or PREISACH_MEMORY_LIMIT "
-            "in GiB)" + (f"; {hint}" if hint else "")
+            f"{what} would need {_size(nbytes)}, more than the {_size(budget)} allowed (half "
+            "the free memory, or PREISACH_MEMORY_LIMIT in GiB)" + (f"; {hint}" if hint else "")
         )
+
+
+def _size(nbytes: float) -> str:
+    for unit, scale in (("GiB", _GIB), ("MiB", float(1 << 20)), ("KiB", 1024.0)):
+        if nbytes >= scale:
+            return f"{nbytes / scale:.1f} {unit}"
+    return f"{nbytes:.0f} bytes"

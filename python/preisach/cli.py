@@ -124,10 +124,18 @@ def run_command(
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (see :data:`EXIT_BAD_INPUT` and friends)."""
+    from ._signals import stop_signals
+
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv  # accepted anywhere: preisach diagnose ... --debug
-    parser = _build_parser()
-    args = parser.parse_args([a for a in argv if a != "--debug"])
+    try:
+        with stop_signals():  # building the parser imports every command: seconds on a busy box
+            parser = _build_parser()
+            args = parser.parse_args([a for a in argv if a != "--debug"])
+    except KeyboardInterrupt as exc:
+        why = str(exc) if getattr(exc, "signum", None) else "interrupted (Ctrl-C)"
+        print(f"preisach: {why} before the command started; nothing was written", file=sys.stderr)
+        return exit_code(exc)
     args.debug = debug
     if not getattr(args, "command", None):
         parser.print_help()
