@@ -67,23 +67,32 @@ public:
     std::size_t size() const noexcept { return knots_.size(); }
     const std::vector<double>& knots() const noexcept { return knots_; }
 
-    // Weights b_k(v) into w[0..K); v is a rate (V/s), v <= 0 counts as below the first knot.
-    void weights(double v, double* w) const noexcept {
+    // The two weights that can be non-zero: b_j = 1 - x and b_{j+1} = x (x = 0 outside the
+    // knots, with j = 0 or K - 1); v is a rate (V/s), v <= 0 counts as below the first knot.
+    void segment(double v, std::size_t& j, double& x) const noexcept {
         const std::size_t K = knots_.size();
-        for (std::size_t k = 0; k < K; ++k) w[k] = 0.0;
+        x = 0.0;
         if (!(v > knots_[0])) {
-            w[0] = 1.0;
+            j = 0;
             return;
         }
         if (v >= knots_[K - 1]) {
-            w[K - 1] = 1.0;
+            j = K - 1;
             return;
         }
-        std::size_t j = 0;
+        j = 0;
         while (v >= knots_[j + 1]) ++j;
-        const double x = (std::log(v) - log_[j]) * inv_dlog_[j];
+        x = (std::log(v) - log_[j]) * inv_dlog_[j];
+    }
+
+    // Weights b_k(v) into w[0..K).
+    void weights(double v, double* w) const noexcept {
+        std::size_t j = 0;
+        double x = 0.0;
+        segment(v, j, x);
+        for (std::size_t k = 0; k < knots_.size(); ++k) w[k] = 0.0;
         w[j] = 1.0 - x;
-        w[j + 1] = x;
+        if (x != 0.0) w[j + 1] = x;
     }
 
 private:
@@ -203,7 +212,6 @@ public:
         live_.assign(K_, 0.0);
         eb0_.assign(K_, 0.0);
         s_last_.assign(K_, 0.0);
-        w_.assign(K_, 0.0);
         vals_.assign(K_, 0.0);
         gamma_.assign(K_, 0.0);
         reset(state, rate);
@@ -335,8 +343,18 @@ public:
     const RateDependentModel& model() const noexcept { return *m_; }
     std::size_t depth() const noexcept { return pieces_.size(); }
     // b_k(v) and Gamma_k(psi) of the current sample (K values each).
-    const std::vector<double>& weights() const noexcept { return w_; }
-    const std::vector<double>& readouts() const noexcept { return gamma_; }
+    std::vector<double> weights() const {
+        std::vector<double> w(K_, 0.0);
+        w[wj_] = 1.0 - wx_;
+        if (wx_ != 0.0) w[wj_ + 1] = wx_;
+        return w;
+    }
+    std::vector<double> readouts() const {
+        std::vector<double> g(K_);
+        const double* ym = m_->y_mins().data();
+        for (std::size_t q = 0; q < K_; ++q) g[q] = ym[q] + 2.0 * (s_last_[q] + live_[q]);
+        return g;
+    }
 
     State state() const { return State(u_min_, u_max_, cur_, pieces_); }
 
@@ -344,34 +362,38 @@ public:
     // (the rate held fixed; Appendix A per table).
     Slopes slopes() const {
         double up = 0.0, down = 0.0;
+        const std::vector<double> w = weights();
         for (std::size_t q = 0; q < K_; ++q) {
-            if (w_[q] == 0.0) continue;
+            if (w[q] == 0.0) continue;
             const EverettTable& t = m_->table(q);
             if (cur_ < u_max_) {
                 double bstar = cur_;
                 std::size_t k = pieces_.size();
                 while (k > 0 && pieces_[k - 1].phi_start() <= cur_) bstar = pieces_[--k].b0;
-                up += w_[q] * 2.0 * t.d_alpha(cur_, bstar);
+                up += w[q] * 2.0 * t.d_alpha(cur_, bstar);
             }
             if (cur_ > u_min_) {
                 std::size_t k = pieces_.size();
                 while (k > 0 && pieces_[k - 1].b0 >= cur_) --k;
-                if (k > 0) down += w_[q] * -2.0 * t.d_beta(pieces_[k - 1].phi(cur_), cur_);
+                if (k > 0) down += w[q] * -2.0 * t.d_beta(pieces_[k - 1].phi(cur_), cur_);
             }
         }
         return {up, down};
     }
 
 private:
+    // y = (1 - x) Gamma_j + x Gamma_{j+1}: only the two tables whose weights can be non-zero.
     void update_output() noexcept {
-        m_->basis().weights(v_, w_.data());
+        m_->basis().segment(v_, wj_, wx_);
         const double* ym = m_->y_mins().data();
-        double y = 0.0;
-        for (std::size_t q = 0; q < K_; ++q) {
-            gamma_[q] = ym[q] + 2.0 * (s_last_[q] + live_[q]);
-            y = q == 0 ? w_[0] * gamma_[0] : y + w_[q] * gamma_[q];
+        const std::size_t j = wj_;
+        const double g0 = ym[j] + 2.0 * (s_last_[j] + live_[j]);
+        if (wx_ == 0.0) {
+            y_ = g0;
+        } else {
+            const double g1 = ym[j + 1] + 2.0 * (s_last_[j + 1] + live_[j + 1]);
+            y_ = (1.0 - wx_) * g0 + wx_ * g1;
         }
-        y_ = y;
     }
 
     void set_limits() noexcept {
@@ -490,7 +512,9 @@ private:
     std::vector<double> S_;      // per piece, per table: sum of the contributions below it
     std::vector<double> E0_;     // per piece, per table: E(M, b0) once the piece stopped rising
     std::vector<double> live_, eb0_, s_last_;  // per table, as in Simulator
-    std::vector<double> w_, vals_, gamma_;     // weights, scratch, read-outs
+    std::vector<double> vals_, gamma_;         // scratch
+    std::size_t wj_ = 0;                       // weights: b_wj = 1 - wx, b_{wj+1} = wx
+    double wx_ = 0.0;
     double u_min_ = 0.0, u_max_ = 0.0;
     GridPos cur_pos_{0, 0.0}, fix_{0, 0.0};
     double lo_ = 0.0, hi_ = 0.0;
