@@ -53,6 +53,8 @@ def test_feedforward_beats_the_linear_gain_on_a_model_plant():
     for name in ("triangle-1Hz", "random-reversals", "fod-pattern"):
         assert res.get(name, "feedforward").max_error_pct < 1.5
     json.dumps(res.to_dict())
+    html = res._repr_html_()
+    assert html.startswith("<table>") and html.count("<tr>") == 1 + len(res.references)
     table = res.table()
     assert table.count("\n") == 1 + len(res.references) and "sine-1Hz" in table
 

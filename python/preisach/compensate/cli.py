@@ -192,6 +192,7 @@ def _tracking(args: argparse.Namespace) -> int:
     if bad:
         raise ValueError(f"--modes: unknown mode {bad[0]!r}; choose from {', '.join(MODES)}")
     realtime = False
+    device: Any
     if args.device == "sim":
         truth = _load_any_model(args.truth)
         device = daq.virtual_ss15(truth, "anhysteretic", sample_time=ts, seed=args.seed)

@@ -74,4 +74,5 @@ def identify_from_device(
             raise RuntimeError(f"{path}: the identification sweep ended early: {res.end_status}")
         rec = Recording.load(path)
     aligned = Recording.from_arrays(t=rec.t[:-1], u=rec.u[:-1], y=rec.y[1:], experiment="fod_sweep")
-    return identify_fod(aligned, project=True, name=f"Mayergoyz from the device, {levels} levels")
+    report = identify_fod(aligned, project=True, name=f"Mayergoyz from the device, {levels} levels")
+    return report.model, report

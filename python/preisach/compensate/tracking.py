@@ -146,6 +146,23 @@ class TrackingResult:
         """Return the result as a Markdown table (see :func:`format_tracking_table`)."""
         return format_tracking_table(self)
 
+    def _repr_html_(self) -> str:
+        from .._display import _e, _g, _table
+
+        modes = [m for m in MODES if any(r.mode == m for r in self.runs)]
+        header = ["reference", *(f"{_e(m)}<br>max / RMS %" for m in modes)]
+        pi_modes = [m for m in ("pi", "pi+feedforward") if m in modes]
+        header += [f"n<sub>c</sub> {_e(m)}" for m in pi_modes]
+        rows = []
+        for ref in self.references:
+            runs = [self.get(ref.name, m) for m in modes]
+            row = [_e(ref.name)]
+            row += [f"{_g(r.max_error_pct, '.3g')} / {_g(r.rms_error_pct, '.3g')}" for r in runs]
+            row += [_g(self.get(ref.name, m).effort, ".3g") for m in pi_modes]
+            rows.append(row)
+        cap = f"Tracking error in % of the {self.stroke:.4g} V stroke"
+        return _table(header, rows, caption=_e(cap))
+
     def plot(self, reference: str | None = None) -> Any:
         """Plot reference vs output, error vs time, max error vs frequency; return the figure."""
         from .plots import plot_tracking
@@ -287,7 +304,11 @@ def device_loop(
     from ..recording import Recording
 
     own = record_dir is None
-    folder = tempfile.mkdtemp(prefix="preisach-tracking-") if own else os.fspath(record_dir)
+    folder = (
+        tempfile.mkdtemp(prefix="preisach-tracking-")
+        if record_dir is None
+        else os.fspath(record_dir)
+    )
     os.makedirs(folder, exist_ok=True)
     count = [0]
 
