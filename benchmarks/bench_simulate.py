@@ -3,8 +3,12 @@
 Prints, from one run on this machine (ratios are what matter: machines here are shared):
   * samples/s of PreisachModel.simulate on a 1e7-sample random walk (41-level table);
   * samples/s of the plain NumPy relay-grid reference (200 x 200 cells) on the same input
-    (a prefix of it: the reference is too slow for all of it) and the ratio;
-  * batch throughput on 1 thread and on all cores, and the speed-up.
+    (a prefix of it: the reference is too slow for all of it), its BLAS pinned to one thread
+    (a fair single-core reference), and the ratio;
+  * batch throughput on 1 thread and on the cores obtained, and the speed-up.
+
+Every speed-up is printed next to the cores this process obtained (``os.sched_getaffinity``;
+on a shared machine other jobs take some of them).
 
 Run:  python benchmarks/bench_simulate.py [--samples N] [--reference-samples N]
 """
@@ -19,6 +23,7 @@ import numpy as np
 from preisach import PreisachModel
 from preisach.reference import RelayGrid
 from preisach.surface import TABLE_3_1
+from threadpoolctl import threadpool_limits
 
 
 def random_walk(n: int, seed: int, step: float = 2.0, lo: float = -100.0, hi: float = 100.0):
@@ -57,13 +62,16 @@ def main() -> None:
 
     ref = RelayGrid.from_everett(TABLE_3_1[1].everett, -100.0, 100.0, 200, model.y_min)
     ur = u[: args.reference_samples]
-    t_ref = best_of(lambda: (ref.reset(), ref.run(ur)), 1)
+    with threadpool_limits(limits=1, user_api="blas"):  # the reference on one core
+        t_ref = best_of(lambda: (ref.reset(), ref.run(ur)), 1)
     slow = ur.size / t_ref
     # Same input, same answers (up to the relay grid's discretisation).
     ref.reset()
     gap = np.abs(ref.run(ur) - model.simulate(ur, s0).output).max()
 
-    cores = os.cpu_count() or 1
+    cores = (
+        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    )
     runs = max(8, 2 * cores)
     per = max(args.samples // runs, 1)
     U = np.stack([random_walk(per, seed=10 + r) for r in range(runs)])
@@ -79,10 +87,14 @@ def main() -> None:
         f"NumPy relay grid 200x200 ({ref.weights.size} relays), {ur.size} samples:     "
         f"{slow / 1e6:8.4f} M samples/s   (max |difference| {gap * 1e3:.2f} mV)"
     )
-    print(f"speed ratio simulate / relay grid: {fast / slow:,.0f}x")
+    print(
+        f"speed ratio simulate / relay grid: {fast / slow:,.0f}x "
+        f"(both on 1 thread; {cores} cores obtained)"
+    )
     print(
         f"batch {runs} runs x {per} samples: 1 thread {runs * per / t1 / 1e6:.1f} M/s, "
-        f"{cores} threads {runs * per / tn / 1e6:.1f} M/s, speed-up {t1 / tn:.2f}x"
+        f"all threads {runs * per / tn / 1e6:.1f} M/s, speed-up {t1 / tn:.2f}x "
+        f"on {cores} cores obtained"
     )
 
 

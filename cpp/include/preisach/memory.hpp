@@ -100,26 +100,29 @@ public:
             throw std::invalid_argument("state: input " + std::to_string(u_) + " is outside [" +
                                         std::to_string(u_min_) + ", " + std::to_string(u_max_) + "]");
         double prev_phi_end = u_max_;
+        const double tol = 1e-12 * (u_max_ - u_min_);
         for (std::size_t k = 0; k < pieces_.size(); ++k) {
             const Piece& p = pieces_[k];
-            const std::string where = "state: piece " + std::to_string(k);
-            if (!std::isfinite(p.b0) || !std::isfinite(p.v)) throw std::invalid_argument(where + " is not finite");
-            if (k == 0 && p.b0 != u_min_) throw std::invalid_argument(where + " must start at u_min");
+            // the message is built only on error: validate runs on every state entering the core
+            if (!std::isfinite(p.b0) || !std::isfinite(p.v)) invalid_piece(k, " is not finite");
+            if (k == 0 && p.b0 != u_min_) invalid_piece(k, " must start at u_min");
             const double end = piece_end(k);
-            if (!(end > p.b0)) throw std::invalid_argument(where + " is empty or out of order (starts at " +
-                                                            std::to_string(p.b0) + ", ends at " +
-                                                            std::to_string(end) + ")");
-            const double tol = 1e-12 * (u_max_ - u_min_);
-            if (p.phi_start() > u_max_ + tol) throw std::invalid_argument(where + " lies beyond u_max");
+            if (!(end > p.b0))
+                invalid_piece(k, " is empty or out of order (starts at " + std::to_string(p.b0) + ", ends at " +
+                                     std::to_string(end) + ")");
+            if (p.phi_start() > u_max_ + tol) invalid_piece(k, " lies beyond u_max");
             if (p.phi_start() > prev_phi_end + tol)
-                throw std::invalid_argument(where + ": the boundary must be non-increasing (Lipschitz in (r, s))");
-            if (p.phi(end) < end - tol)
-                throw std::invalid_argument(where + " crosses the diagonal alpha = beta");
+                invalid_piece(k, ": the boundary must be non-increasing (Lipschitz in (r, s))");
+            if (p.phi(end) < end - tol) invalid_piece(k, " crosses the diagonal alpha = beta");
             prev_phi_end = p.phi(end);
         }
     }
 
 private:
+    [[noreturn]] static void invalid_piece(std::size_t k, const std::string& what) {
+        throw std::invalid_argument("state: piece " + std::to_string(k) + what);
+    }
+
     static void check_range(double u_min, double u_max) {
         if (!std::isfinite(u_min) || !std::isfinite(u_max) || !(u_max > u_min))
             throw std::invalid_argument("input range: need finite u_min < u_max, got [" + std::to_string(u_min) +
