@@ -83,15 +83,12 @@ PACKAGE = ROOT / "python" / "preisach"
 #: Layer of each module or package (the longest matching prefix wins), lowest first:
 #: 0 core and utilities, 1 model level (data types, simulation, rig), 2 what uses models
 #: (identification, verification, experiments, compensation), 3 diagnosis, 4 the faces
-#: (command line, demo, figures, trial files, studies).  Any ``*.cli`` module is layer 4.
+#: (command line, demo, figures, trial files, studies).  Any ``*.cli`` module is layer 4;
+#: a private top-level module (``preisach._io``, ``preisach._blas``...) is a core utility.
 LAYERS: dict[str, int] = {
     "preisach._core": 0,
     "preisach.errors": 0,
     "preisach.types": 0,
-    "preisach._io": 0,
-    "preisach._blas": 0,
-    "preisach._progress": 0,
-    "preisach._display": 0,
     "preisach.execution": 0,
     "preisach.model": 1,
     "preisach.rate_model": 1,
@@ -133,6 +130,8 @@ def layer_of(module: str) -> int:
     parts = module.split(".")
     if parts[-1] == "cli":
         return 4
+    if len(parts) == 2 and parts[1].startswith("_"):
+        return 0
     for k in range(len(parts), 0, -1):
         prefix = ".".join(parts[:k])
         if prefix in LAYERS:
