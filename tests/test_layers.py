@@ -114,8 +114,15 @@ LAYERS: dict[str, int] = {
 }
 LAYER_NAMES = ["core", "model", "identify/experiments", "diagnose", "faces"]
 
-#: Known upward imports, each with the reason it is tolerated; remove an entry with its cause.
-ALLOWED: set[tuple[str, str]] = set()
+#: Known upward imports (module, target) with the reason each is tolerated; remove an entry
+#: with its cause.
+ALLOWED: dict[tuple[str, str], str] = {
+    ("preisach.model", "preisach.compensate"): (
+        "PreisachModel.inverse/inverter delegate lazily to compensate.inverse (as .plot() does "
+        "to plotting) and name its InverseResult for typing; compensate.inverse itself needs "
+        "only the model layer, so moving it down (or the methods out of model.py) ends this"
+    ),
+}
 
 
 def _module_name(path: Path) -> str:
