@@ -97,7 +97,14 @@ def test_forc_diagram_cli_and_agreement_with_pyforc(tmp_path, capsys):
     fig = tmp_path / "forc.png"
     assert main(["forc", str(PMAGPY_FORC), "--sf", "3", "--plot", str(fig)]) == 0
     assert fig.stat().st_size > 10_000
-    assert "none outside the measured band" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "none outside the measured band" in out
+    # the peak away from the band's edge: single-domain-like, H_c about 8.5 mT, H_u about 0
+    mine_sf3 = forc_diagram(PMAGPY_FORC, 3)
+    full = np.where(mine_sf3.full_window, mine_sf3.rho, -np.inf)
+    k = np.unravel_index(int(np.argmax(full)), full.shape)
+    assert 0.005 < mine_sf3.h_c[k] < 0.012 and abs(mine_sf3.h_u[k]) < 0.003
+    assert f"H_c = {mine_sf3.h_c[k]:.4g} T" in out
     mine = forc_diagram(PMAGPY_FORC, 3, drift=False)
     assert np.all(np.isnan(mine.rho[np.isnan(mine.moment)]))  # nothing outside the band
     pyforc = pytest.importorskip("pyforc")

@@ -335,7 +335,8 @@ def _forc(args: argparse.Namespace) -> int:
         raise ValueError(f"--sf: need a smoothing factor >= 1, got {args.sf}")
     d = forc_diagram(args.file, args.sf, drift=not args.no_drift)
     ok = np.isfinite(d.rho)
-    k = np.unravel_index(int(np.nanargmax(np.where(ok, d.rho, -np.inf))), d.rho.shape)
+    full = ok & d.full_window  # the peak where the whole window was measured
+    k = np.unravel_index(int(np.argmax(np.where(full, d.rho, -np.inf))), d.rho.shape)
     fu, mu = d.field_units, d.moment_units
     summary = {
         "curves": int(d.h_r.size),
@@ -344,6 +345,7 @@ def _forc(args: argparse.Namespace) -> int:
         "moment_units": mu,
         "points_defined": int(ok.sum()),
         "points_measured": int(np.isfinite(d.moment).sum()),
+        "points_full_window": int(full.sum()),
         "peak_rho": float(d.rho[k]),
         "peak_h_c": float(d.h_c[k]),
         "peak_h_u": float(d.h_u[k]),
@@ -355,7 +357,8 @@ def _forc(args: argparse.Namespace) -> int:
     )
     print(
         f"peak rho {summary['peak_rho']:.4g} {mu}/{fu}^2 at H_c = {summary['peak_h_c']:.4g} {fu}, "
-        f"H_u = {summary['peak_h_u']:.4g} {fu}"
+        f"H_u = {summary['peak_h_u']:.4g} {fu} (over the {summary['points_full_window']} points "
+        "whose whole window was measured)"
     )
     _write_json(args.json, summary)
     if args.plot:

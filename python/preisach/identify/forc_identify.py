@@ -154,6 +154,9 @@ class ForcDiagram:
         ``-1/2 d^2 M / (dH_r dH)`` (moment units per field unit squared); NaN where undefined.
     smoothing_factor : int
         SF of the local polynomial regression.
+    full_window : ndarray of bool, shape (n_curves, n_fields)
+        Where the whole ``(2 SF + 1)^2`` window was measured (away from the band's edge, where
+        one-sided windows make rho less certain).
     field_units, moment_units : str
 
     """
@@ -163,6 +166,7 @@ class ForcDiagram:
     moment: NDArray[np.float64]
     rho: NDArray[np.float64]
     smoothing_factor: int
+    full_window: NDArray[np.bool_]
     field_units: str = "T"
     moment_units: str = "A m^2"
 
@@ -292,6 +296,7 @@ def forc_diagram(source: Source, smoothing_factor: int = 3, *, drift: bool = Tru
         moment=M,
         rho=rho,
         smoothing_factor=sf,
+        full_window=np.asarray(ok & (count >= (2 * sf + 1) ** 2 - 0.5)),
         field_units=fu,
         moment_units=mu,
     )
