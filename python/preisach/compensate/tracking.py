@@ -244,7 +244,7 @@ def model_loop(plant: Any, sample_time: float = 1e-3) -> Loop:
     """Return a loop on a simulated plant, run sample by sample.
 
     The plant is a :class:`PreisachModel` or anything with ``reset()`` and ``step(u) -> y``
-    (e.g. a :mod:`preisach.blocks` chain).
+    (e.g. a :mod:`preisach.daq.blocks` chain).
 
     The model starts each run from its anhysteretic state (the frame saturates it anyway).
     """

@@ -6,7 +6,7 @@
 >>> report.model.save("augmented.npz")                       # doctest: +SKIP
 
 Modules, bottom to top: :mod:`~preisach.diagnose.effects` (the effect blocks: physics around the
-Preisach operator, distinct from the rig's :mod:`preisach.blocks`),
+Preisach operator, distinct from the rig's :mod:`preisach.daq.blocks`),
 :mod:`~preisach.diagnose.candidates` (candidate explanations), :mod:`~preisach.diagnose.data`
 (recordings prepared, noise level), :mod:`~preisach.diagnose.context` (base model, chains,
 fitting), :mod:`~preisach.diagnose.problem` (one candidate's training problem),

@@ -14,7 +14,7 @@ Sampling convention (the same as the C++ blocks): ``step(x)`` advances one sampl
 with the input held at ``x`` and returns the output at the end of the interval; linear blocks
 are discretised exactly under this zero-order hold.
 
-Overlap with the virtual rig's C++ blocks (:mod:`preisach.blocks`).  Several candidates model
+Overlap with the virtual rig's C++ blocks (:mod:`preisach.daq.blocks`).  Several candidates model
 the same physics as a rig block; they are kept as independent implementations here because the
 proof of diagnosis (:mod:`preisach.studies.diagnosis_cases`) uses the rig's blocks as the truth,
 and a candidate that called the truth's code would prove nothing about the code.  A unified block

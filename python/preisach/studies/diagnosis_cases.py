@@ -42,7 +42,7 @@ two is a coincidence of one case, not a property of the proof.
 ``kind="none"`` makes the null case: the same experiments without any effect.
 
 ``generator="rig"`` takes the truth from the virtual SS15 rig instead (:mod:`preisach.daq`,
-its C++ blocks :mod:`preisach.blocks`), measured through its DAQ.  Its blocks are largely the
+its C++ blocks :mod:`preisach.daq.blocks`), measured through its DAQ.  Its blocks are largely the
 candidates' own forms (an input lag, a second-order mode, a Prony series, a delay, a moving
 Preisach stage with linear feedback), so the rig generator is the *same-form check*: it shows
 that diagnosis finds and measures an effect whose form it has; the ``own`` generator is the

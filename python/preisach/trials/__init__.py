@@ -31,7 +31,7 @@ File layout
     # sim:     model = "ss15-1hz" (built-in name or a saved model .npz), state = "anhysteretic"
     #          ("negative_saturation", "positive_saturation"), seed, adc_noise (V rms),
     #          adc_bits, dac_bits, moving_gain (V/V), input_blocks / output_blocks
-    #          (arrays of {kind = ..., params...}, see preisach.blocks)
+    #          (arrays of {kind = ..., params...}, see preisach.daq.blocks)
 
     [output]                     # the actuator channel (DAC -> amplifier)
     name = "V_in"
