@@ -95,6 +95,11 @@ Step kinds (all voltages at the actuator, V; times in s; frequencies in Hz):
     ``noise_from`` (2) to ``noise_to`` (10) with ``amplitude``, ``seed``, ``offset`` as above.
 ``hold``
     Hold ``value`` (default the current output) for ``duration`` s.
+``track``
+    Feedforward: ``feedforward`` (a model file or built-in name), ``reference`` (a CSV with
+    ``t,y``: the desired output, V, sampled at the trial's sample time), ``state``
+    ("negative" or "positive"): ramp to that saturation, hold 0.1 s, then play the model's exact
+    inverse for the reference (:mod:`preisach.compensate`), under the same safety limits.
 
 Every step also takes ``name`` (used in its file name).  :func:`check_trial` validates a
 file without running it and reports every problem at once: unknown keys (with a suggestion),

@@ -125,6 +125,10 @@ def step_waveform(
                 i0, i1 = int(round(p["noise_from"] / ts)), min(n, int(round(p["noise_to"] / ts)))
                 eta = _noise(p, (i1 - i0) * ts, ts)[: i1 - i0]
                 u[i0 : i0 + eta.size] += eta * p["noise_gain"] * p["input_gain"]
+    elif step.kind == "track":
+        from ..compensate.trial import track_waveform
+
+        u, info = track_waveform(p, ts)
     elif step.kind == "hold":
         value = u_now if p["value"] is None else p["value"]
         u = np.full(max(1, int(round(p["duration"] / ts))), value)

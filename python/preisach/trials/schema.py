@@ -144,6 +144,13 @@ STEP_KINDS: dict[str, dict[str, tuple[Any, Any]]] = {
         "offset": (_NUM, None),
     },
     "hold": {"duration": (_NUM, REQUIRED), "value": (_NUM, None)},
+    # feedforward: the drive is the exact inverse of `feedforward` (a model file) for the output
+    # reference `reference` (CSV with t,y), after a ramp to the start state (preisach.compensate)
+    "track": {
+        "feedforward": (str, REQUIRED),
+        "reference": (str, REQUIRED),
+        "state": (str, "negative"),
+    },
 }
 _TARGETS = {"psi_n": "n", "psi_a": "a", "psi_d": "d"}
 _SECTIONS = ("trial", "device", "output", "input", "safety", "steps")
@@ -522,6 +529,8 @@ def _check_step(
                 where,
                 "y_d on a real device needs model = '...' to compute the offset (or give offset)",
             )
+    if kind == "track" and p["state"] not in ("negative", "positive"):
+        errors.add(where, f"state must be 'negative' or 'positive', got {p['state']!r}")
     if kind == "pi" and not p["noise_from"] <= p["noise_to"]:
         errors.add(where, "noise_from must be <= noise_to")
     if kind in ("noise", "pi") and p["amplitude"] < 0:
