@@ -34,7 +34,7 @@ def track_waveform(
 
     """
     from ..model import BUILTIN_MODELS, PreisachModel
-    from .cli import read_reference
+    from .reference import read_reference
 
     name = str(p["feedforward"])
     model = (
