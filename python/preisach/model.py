@@ -21,7 +21,7 @@ import zipfile
 import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union, cast
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -172,7 +172,7 @@ class SimulationResult:
         """Sample times (s)."""
         if self._time is None:
             self._time = np.arange(self.output.size, dtype=np.float64) * float(self.sample_time)
-        return cast(NDArray[np.float64], self._time)
+        return self._time
 
     def __iter__(self) -> Iterator[NDArray[np.float64]]:
         yield self.time

@@ -1029,7 +1029,7 @@ class RecordingWriter:
         self._write(_rows_text(block))
         self._n_rows += n
         self._last_t = float(t[-1])
-        return n
+        return int(n)
 
     def close(self, status: str = "complete", metadata: Mapping[str, Any] | None = None) -> None:
         """Write the trailing metadata and ``# end_status: <status>``, then close the file.

@@ -95,9 +95,10 @@ class SqrtSurface:
         """FOD output ``y(alpha, beta)`` in volts (Eq 3.2), for ``alpha >= beta``."""
         a, b = np.broadcast_arrays(np.asarray(alpha, float), np.asarray(beta, float))
         f3 = self._f3(a)
-        return (
+        y: NDArray[np.float64] = (
             self._scale() * self._f2(a) * (np.sqrt(b - f3) - np.sqrt(self.u_min - f3)) + self.y_min
         )
+        return y
 
     def everett(self, alpha: ArrayLike, beta: ArrayLike) -> NDArray[np.float64]:
         """Everett function ``E = (y(alpha, alpha) - y(alpha, beta)) / 2`` in volts."""

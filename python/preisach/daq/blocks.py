@@ -39,7 +39,7 @@ diagnosis's effect blocks do.  This module mirrors ``cpp/include/preisach/blocks
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 from .. import _core
 from ..model import PreisachModel, State
@@ -130,7 +130,7 @@ def make_block(spec: Mapping[str, Any], dt: float) -> RigBlock:
                 )
             value = int(value)
         args[name] = value
-    return cls(dt, **args)
+    return cast(RigBlock, cls(dt, **args))
 
 
 def preisach_stage(

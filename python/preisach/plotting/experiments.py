@@ -269,7 +269,7 @@ def plot_sweep_traces(result: SweepResult, *, fig: Figure | None = None) -> Figu
     """Plot the output from each initial state per frequency (Figs 4.9-4.11, 5.2-5.4)."""
     if not result.traces:
         raise ValueError("this sweep kept no traces (trace=None)")
-    from ..experiments.sweep import KINDS
+    from ..experiments.initialisation import KINDS
 
     fs = sorted({f for f, _ in result.traces})
     fig = _figure(fig, figsize=(8.0, 2.6 * len(fs)))
