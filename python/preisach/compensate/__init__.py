@@ -6,6 +6,9 @@
   target, for a real-time loop;
 * :mod:`preisach.compensate.augmented` — inverses of the physics blocks that diagnosis adds
   around the hysteresis (delay, linear dynamics), for compensating with an augmented model;
+* :mod:`preisach.compensate.rate` — the inverse of the rate-dependent model (bracket on the
+  grid, then regula falsi: the rate makes it non-polynomial);
+* :mod:`preisach.compensate.trial` — the ``track`` step of scripted trials;
 * :mod:`preisach.compensate.tracking` — the tracking experiment (uncompensated, feedforward,
   PI, PI + feedforward) on a model or a device.
 
