@@ -65,13 +65,14 @@ class Case:
     check: Callable[[], str] | None = None  # extra check: "" if fine, else the data-loss reason
 
 
-def _child_limits(fsize: int | None) -> Callable[[], None] | None:
-    if fsize is None:
-        return None
-
+def _child_limits(fsize: int | None) -> Callable[[], None]:
     def apply() -> None:
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, resource.RLIM_INFINITY))
+        # A script started in the background inherits SIGINT ignored, and Python then leaves it
+        # ignored: give the child the default, as a terminal would.
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        if fsize is not None:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, resource.RLIM_INFINITY))
 
     return apply
 
@@ -394,7 +395,7 @@ def build_cases(d: Path) -> list[Case]:
         ["nosuchcommand"],
         [],
     ):
-        add(Case(" ".join(argv[:3]) or "(no command)", argv))
+        add(Case(" ".join(argv[:3]) or "no command", argv))
     # ---- memory -----------------------------------------------------------------------------
     add(
         Case(

@@ -138,7 +138,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exit_code(exc)
     args.debug = debug
     if not getattr(args, "command", None):
-        parser.print_help()
+        parser.print_usage(sys.stderr)
+        print(
+            "preisach: error: a command is required (preisach --help lists them)", file=sys.stderr
+        )
         return EXIT_USAGE
     return run_command(args.command, args.func, args)
 
