@@ -1,7 +1,8 @@
 """Import cost of the package face against its floor (numpy + the compiled core).
 
 Each figure is the best of ``--repeats`` fresh interpreters (wall clock inside the child, so
-interpreter start-up is excluded):
+interpreter start-up is excluded); the variants take turns, one interpreter each per round, so
+a load that comes and goes on a shared machine hits them alike:
 
   * floor: ``import numpy`` plus loading ``preisach/_core*.so`` directly (no package code);
   * ``import numpy; import preisach`` (the face: lazy, loads the core and the error types);
@@ -53,19 +54,25 @@ def core_path() -> str:
     raise SystemExit("preisach._core not found: install the package first (pip install -e .)")
 
 
-def best_ms(body: str, repeats: int) -> float:
-    """Best wall time (ms) of ``body`` over ``repeats`` fresh interpreters."""
+def run_ms(body: str) -> float:
+    """Wall time (ms) of ``body`` in a fresh interpreter."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    best = float("inf")
+    out = subprocess.run(
+        [sys.executable, "-c", _TIMER.format(body=body)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+    ).stdout
+    return 1e3 * float(out.strip().splitlines()[-1])
+
+
+def best_ms(bodies: dict[str, str], repeats: int) -> dict[str, float]:
+    """Best wall time (ms) of each body over ``repeats`` rounds, the bodies taking turns."""
+    best = dict.fromkeys(bodies, float("inf"))
     for _ in range(repeats):
-        out = subprocess.run(
-            [sys.executable, "-c", _TIMER.format(body=body)],
-            capture_output=True,
-            text=True,
-            check=True,
-            env=env,
-        ).stdout
-        best = min(best, 1e3 * float(out.strip().splitlines()[-1]))
+        for name, body in bodies.items():
+            best[name] = min(best[name], run_ms(body))
     return best
 
 
@@ -77,11 +84,19 @@ def main() -> None:
     args = ap.parse_args()
 
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    numpy_ms = best_ms("import numpy", args.repeats)
-    floor_ms = best_ms(_LOAD_CORE.format(path=core_path()), args.repeats)
-    face_ms = best_ms("import numpy\nimport preisach", args.repeats)
-    model_ms = best_ms("import numpy\nimport preisach.model", args.repeats)
-    heavy_ms = best_ms("import numpy\nfrom preisach import diagnose", args.repeats)
+    ms = best_ms(
+        {
+            "numpy": "import numpy",
+            "floor": _LOAD_CORE.format(path=core_path()),
+            "face": "import numpy\nimport preisach",
+            "model": "import numpy\nimport preisach.model",
+            "heavy": "import numpy\nfrom preisach import diagnose",
+        },
+        args.repeats,
+    )
+    numpy_ms, floor_ms, face_ms, model_ms, heavy_ms = (
+        ms[k] for k in ("numpy", "floor", "face", "model", "heavy")
+    )
 
     print(f"cores obtained: {cores}; best of {args.repeats} fresh interpreters each")
     print(f"  import numpy                          {numpy_ms:8.1f} ms")
