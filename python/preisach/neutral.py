@@ -347,49 +347,13 @@ class NeutralLocus:
         points: dict[str, tuple[float, float]] | None = None,
         title: str | None = None,
     ) -> Figure:
-        """Plot ``N(l)`` in the input-output plane (dash-dot), optionally inside the major loop.
+        """Plot ``N(l)`` in the input-output plane, optionally inside the major loop.
 
-        Parameters
-        ----------
-        ax : matplotlib Axes, optional
-            Axes to draw on; a new figure is made otherwise.
-        model : PreisachModel, optional
-            Draws the model's major loop (ascending from negative, descending from positive
-            saturation) behind the locus, as thesis Figs 4.6-4.8.
-        points : dict, optional
-            Labelled points ``{label: (u, y)}`` (V, V), e.g. the initial states of a regulation
-            test.
-        title : str, optional
-            Axes title.
-
-        Returns
-        -------
-        matplotlib.figure.Figure
-
+        Drawn by :func:`preisach.plotting.plot_locus` (see it for the parameters).
         """
-        from matplotlib.figure import Figure
+        from .plotting.experiments import plot_locus
 
-        if ax is None:
-            fig = Figure(figsize=(6.0, 4.5))
-            ax = fig.add_subplot()
-        else:
-            fig = ax.figure  # type: ignore[assignment]
-        if model is not None:
-            up = np.linspace(model.u_min, model.u_max, 801)
-            y_up = model.simulate(up, model.negative_saturation()).output
-            y_dn = model.simulate(up[::-1], model.positive_saturation()).output
-            ax.plot(up, y_up, color="0.35", lw=1.0, label="major loop")
-            ax.plot(up[::-1], y_dn, color="0.35", lw=1.0)
-        ax.plot(self.l, self.N, "-.", color="C3", lw=1.5, label="neutral locus N(l)")
-        for k, (label, (u, y)) in enumerate((points or {}).items()):
-            ax.plot([u], [y], "o", color=f"C{k}", label=label)
-        ax.set_xlabel("input u, l (V)")
-        ax.set_ylabel("output y (V)")
-        if title:
-            ax.set_title(title)
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper left", fontsize="small")
-        return fig  # type: ignore[return-value]
+        return plot_locus(self, ax=ax, model=model, points=points, title=title)
 
 
 def neutral_locus(

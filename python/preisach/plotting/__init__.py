@@ -19,7 +19,8 @@ Identification (chapter 3, from :mod:`preisach.identify.plots`)
 Neutral states and regulation (chapters 4-5, from :mod:`preisach.neutral` and
 :mod:`preisach.experiments`)
     :func:`plot_neutral_locus` (N(l) over the major loop with psi_n, psi_a, psi_d marked,
-    Figs 4.6-4.8), :func:`plot_trial` (one drift or PI trial, Figs 4.9-4.11 / 5.2-5.4:
+    Figs 4.6-4.8; :func:`plot_locus` draws a computed locus, ``NeutralLocus.plot``),
+    :func:`plot_trial` (one drift or PI trial, Figs 4.9-4.11 / 5.2-5.4:
     :func:`plot_drift_trial`, :func:`plot_closed_loop_trial`), :func:`plot_sweep` (what
     ``SweepResult.plot`` draws),
     :func:`plot_drift_summary` (Fig 4.12), :func:`plot_effort_summary` (Figs 5.5-5.7),
@@ -54,6 +55,7 @@ from .experiments import (
     plot_effort_increase,
     plot_effort_summary,
     plot_initial_states,
+    plot_locus,
     plot_neutral_locus,
     plot_paired_differences,
     plot_sweep,
@@ -88,6 +90,7 @@ __all__ = [
     "plot_identification",
     "plot_initial_states",
     "plot_kappa",
+    "plot_locus",
     "plot_loop_width",
     "plot_major_loop",
     "plot_neutral_locus",

@@ -19,6 +19,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from ..experiments import ClosedLoopResult, DriftResult, Initialisation, SweepResult
     from ..model import PreisachModel
+    from ..neutral import NeutralLocus
 
 _MARKERS = {"n": "o", "a": "^", "d": "v"}
 _COLORS = {"n": "C0", "a": "C3", "d": "C2"}
@@ -34,12 +35,68 @@ __all__ = [
     "plot_effort_increase",
     "plot_effort_summary",
     "plot_initial_states",
+    "plot_locus",
     "plot_neutral_locus",
     "plot_paired_differences",
     "plot_sweep",
     "plot_sweep_traces",
     "plot_trial",
 ]
+
+
+def plot_locus(
+    locus: NeutralLocus,
+    *,
+    ax: Axes | None = None,
+    model: PreisachModel | None = None,
+    points: dict[str, tuple[float, float]] | None = None,
+    title: str | None = None,
+) -> Figure:
+    """Plot ``N(l)`` in the input-output plane (dash-dot), optionally inside the major loop.
+
+    ``NeutralLocus.plot`` draws this.
+
+    Parameters
+    ----------
+    locus : NeutralLocus
+        The locus (:func:`preisach.neutral.neutral_locus`).
+    ax : matplotlib Axes, optional
+        Axes to draw on; a new figure is made otherwise.
+    model : PreisachModel, optional
+        Draws the model's major loop (ascending from negative, descending from positive
+        saturation) behind the locus, as thesis Figs 4.6-4.8.
+    points : dict, optional
+        Labelled points ``{label: (u, y)}`` (V, V), e.g. the initial states of a regulation
+        test.
+    title : str, optional
+        Axes title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    """
+    if ax is None:
+        fig = _figure(None, figsize=(6.0, 4.5))
+        ax = fig.add_subplot()
+    else:
+        fig = ax.figure  # type: ignore[assignment]
+    if model is not None:
+        up = np.linspace(model.u_min, model.u_max, 801)
+        y_up = model.simulate(up, model.negative_saturation()).output
+        y_dn = model.simulate(up[::-1], model.positive_saturation()).output
+        ax.plot(up, y_up, color="0.35", lw=1.0, label="major loop")
+        ax.plot(up[::-1], y_dn, color="0.35", lw=1.0)
+    ax.plot(locus.l, locus.N, "-.", color="C3", lw=1.5, label="neutral locus N(l)")
+    for k, (label, (u, y)) in enumerate((points or {}).items()):
+        ax.plot([u], [y], "o", color=f"C{k}", label=label)
+    ax.set_xlabel("input u, l (V)")
+    ax.set_ylabel("output y (V)")
+    if title:
+        ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize="small")
+    return fig  # type: ignore[return-value]
 
 
 def plot_neutral_locus(
