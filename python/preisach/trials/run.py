@@ -246,7 +246,10 @@ def run_trial_file(
     realtime : bool
         Pace a simulated device in real time (a real one always is).
     overwrite : bool
-        Replace existing recordings.
+        Reuse a folder that holds an earlier run: its ``summary.json`` and ``NN_<name>.csv``
+        recordings are removed first (other files are kept), so the folder holds this run
+        only.  Without it such a folder raises :class:`FileExistsError` before anything is
+        written or the device is opened.
     fsync : bool
         fsync the recordings as they are written.
     priority : int
@@ -264,7 +267,9 @@ def run_trial_file(
     TrialFileError
         If the file does not pass :func:`check_trial`.
     preisach.errors.TrialInterrupted
-        On Ctrl-C during a step, after the current recording and the summary were written.
+        On Ctrl-C during a step - or SIGTERM/SIGHUP, handled the same way while the trial runs
+        (``signum`` says which; the summary's ``stop_signal`` too) - after the output was
+        ramped to 0 V and the current recording and the summary were written.
     BaseException
         Anything else raised once the device is open - a Ctrl-C between steps, an error while
         planning a step, a device error - is re-raised after the output was ramped from its
