@@ -52,7 +52,16 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
     text = delay_report.to_json(tmp_path / "r.json")
     d = json.loads((tmp_path / "r.json").read_text())
     assert d == json.loads(text)
-    assert set(d) == {"verdict", "effects", "rmse_before", "rmse_after"}
+    assert set(d) == {
+        "verdict",
+        "effects",
+        "rmse_before",
+        "rmse_after",
+        "noise_sigma",
+        "noise_test",
+        "unexplained",
+    }
+    assert set(d["noise_test"]) == {"ratio", "threshold", "consistent"}
     assert d["verdict"] == "delay"
     for e in d["effects"]:
         assert set(e) == {
@@ -243,6 +252,74 @@ def test_noise_alone_gives_verdict_none():
     rep = diagnose(m, recs, candidates=["delay", "gain_offset", "creep"])
     assert rep.verdict == "none" and rep.effects == []
     assert rep.rmse_after == pytest.approx(rep.rmse_before)
+
+
+def test_effect_outside_every_candidate_is_unexplained_not_none():
+    """A 37 Hz square-wave pickup (5 x the noise) that no candidate offered can fit."""
+    m, recs = _recs_with("none")
+    for r in recs:
+        r.y[:] = r.y + 5e-3 * np.sign(np.sin(2 * np.pi * 37.0 * r.t))
+    rep = diagnose(m, recs, candidates=["delay", "gain_offset", "creep"])
+    assert rep.effects == [] and rep.verdict == "unexplained"
+    assert rep.noise_test["ratio"] > 3 and not rep.noise_test["consistent"]
+    un = rep.unexplained
+    assert un is not None and un["ratio"] == rep.noise_test["ratio"]
+    assert un["where"]["peak_Hz"] == pytest.approx(37.0, abs=2.0)
+    assert "x the noise" in un["statement"] and "Hz" in un["statement"]
+    assert json.loads(rep.to_json())["verdict"] == "unexplained"
+    # the same recordings without the pickup: consistent with the noise
+    m, clean = _recs_with("none")
+    rep0 = diagnose(m, clean, candidates=["delay", "gain_offset", "creep"])
+    assert rep0.verdict == "none" and rep0.noise_test["consistent"] and rep0.unexplained is None
+
+
+def test_model_file_carries_its_identification(tmp_path):
+    """Round trip of the identification recordings; files without them stay version 1."""
+    m, recs = _recs_with("none")
+    plain = tmp_path / "plain.npz"
+    m.save(plain)
+    with np.load(plain) as z:
+        assert int(z["version"]) == 1 and "ident_meta" not in z.files
+    assert PreisachModel.load(plain).identification == []
+    m.identification = recs[:2]
+    full = tmp_path / "full.npz"
+    m.save(full)
+    with np.load(full) as z:
+        assert int(z["version"]) == 2
+    back = PreisachModel.load(full)
+    assert back == m and len(back.identification) == 2
+    for a, b in zip(back.identification, recs[:2]):
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(a.u, b.u)
+        np.testing.assert_array_equal(a.y, b.y)
+        assert a.metadata == b.metadata
+    # diagnose uses them by default (training only), and not when told not to
+    lines: list[str] = []
+    diagnose(back, recs[2:], candidates=["gain_offset"], progress=lines.append)
+    assert lines[0].startswith("1 recordings (2 for identification)")
+    lines.clear()
+    diagnose(back, recs[2:], identification=[], candidates=["gain_offset"], progress=lines.append)
+    assert lines[0].startswith("1 recordings (0 for identification)")
+
+
+def test_identify_cli_stores_the_recordings_and_diagnose_uses_them(tmp_path, capsys):
+    from preisach.cli import main
+
+    m, recs = _recs_with("none")
+    paths = []
+    for k, r in enumerate(recs):
+        paths.append(str(tmp_path / f"r{k}.csv"))
+        r.save(paths[-1])
+    model = str(tmp_path / "m.npz")
+    assert main(["identify", paths[0], "-o", model, "--method", "lsq", "--levels", "11"]) == 0
+    stored = PreisachModel.load(model).identification
+    assert len(stored) == 1 and np.allclose(stored[0].y, recs[0].y)
+    out = str(tmp_path / "r.json")
+    argv = ["diagnose", model, *paths[1:], "--json", out, "--candidates", "gain_offset"]
+    assert main(argv) == 0
+    assert "2 recordings (1 for identification)" in capsys.readouterr().out
+    assert main([*argv, "--no-stored-identification"]) == 0
+    assert "2 recordings (0 for identification)" in capsys.readouterr().out
 
 
 def test_argument_errors():

@@ -53,7 +53,9 @@ PathLike = Union[str, "os.PathLike[str]"]
 BUILTIN_MODELS: dict[str, int] = {"ss15-1hz": 1, "ss15-2hz": 2, "ss15-4hz": 4}
 
 _FORMAT = "preisach-model"
-_FORMAT_VERSION = 1
+#: Version 2 adds the identification recordings (``ident{k}_t/u/y`` and ``ident_meta``); a
+#: model without them is still written as version 1, and both versions load.
+_FORMAT_VERSION = 2
 _POLICIES = ("clamp", "raise")
 _FIELDS = ("format", "version", "levels", "everett", "y_min", "info")
 
@@ -250,6 +252,13 @@ class PreisachModel:
         What :meth:`simulate` does with inputs outside ``[u_min, u_max]``: clamp them to the
         range (default) or raise :class:`ValueError` naming the first offending sample.
 
+    Attributes
+    ----------
+    identification : list of Recording
+        The recordings the model was identified from (``preisach identify`` stores them), kept
+        by :meth:`save`; :func:`preisach.diagnose` refits the weights on them by default.
+        Empty when unknown.
+
     """
 
     def __init__(
@@ -270,6 +279,7 @@ class PreisachModel:
         self.name = name
         self.metadata: dict[str, Any] = dict(metadata or {})
         self.out_of_range = out_of_range
+        self.identification: list[Any] = []
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -723,12 +733,19 @@ class PreisachModel:
             ) from exc
         arrays: dict[str, Any] = {
             "format": np.array(_FORMAT),
-            "version": np.array(_FORMAT_VERSION),
+            "version": np.array(_FORMAT_VERSION if self.identification else 1),
             "levels": self.levels,
             "everett": self.everett_values,
             "y_min": np.array(self.y_min),
             "info": np.array(info),
         }
+        if self.identification:
+            metas = []
+            for k, rec in enumerate(self.identification):
+                arrays[f"ident{k}_t"], arrays[f"ident{k}_u"] = rec.t, rec.u
+                arrays[f"ident{k}_y"] = rec.y
+                metas.append(rec.metadata)
+            arrays["ident_meta"] = np.array(json.dumps(metas))
         atomic_write(path, lambda f: np.savez(f, **arrays), binary=True, what="model")
 
     @classmethod
@@ -757,9 +774,10 @@ class PreisachModel:
                 raise ValueError(f"{p}: not a preisach model file (a single array, not an archive)")
             with data:
                 levels, everett, y_min, meta = cls._read_fields(p, data)
+                ident = cls._read_identification(p, data)
         try:
             table = _core.EverettTable(levels, everett, y_min)
-            return cls(
+            model = cls(
                 table,
                 name=str(meta.get("name", "")),
                 metadata=meta.get("metadata", {}),
@@ -767,6 +785,24 @@ class PreisachModel:
             )
         except (ValueError, TypeError) as exc:
             raise ValueError(f"{p}: damaged model file ({exc})") from exc
+        model.identification = ident
+        return model
+
+    @staticmethod
+    def _read_identification(p: str, data: Any) -> list[Any]:
+        """Return the identification recordings of a version-2 archive (none in version 1)."""
+        if "ident_meta" not in data.files:
+            return []
+        from .recording import Recording
+
+        try:
+            metas = json.loads(str(data["ident_meta"]))
+            return [
+                Recording(data[f"ident{k}_t"], data[f"ident{k}_u"], data[f"ident{k}_y"], metadata=m)
+                for k, m in enumerate(metas)
+            ]
+        except (KeyError, ValueError, TypeError, zipfile.BadZipFile, zlib.error, OSError) as exc:
+            raise ValueError(f"{p}: damaged identification recordings ({exc!r})") from exc
 
     @staticmethod
     def _read_fields(
@@ -806,6 +842,7 @@ class PreisachModel:
             "name": self.name,
             "metadata": self.metadata,
             "out_of_range": self.out_of_range,
+            "identification": self.identification,
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -813,6 +850,7 @@ class PreisachModel:
         self.name = state["name"]
         self.metadata = state["metadata"]
         self.out_of_range = state["out_of_range"]
+        self.identification = list(state.get("identification", []))
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, PreisachModel):

@@ -44,11 +44,16 @@ def _run(args: argparse.Namespace) -> int:
     report = diagnose(
         model,
         args.recordings,
-        identification=args.identification or None,
+        identification=(
+            args.identification or None
+            if not args.no_stored_identification
+            else args.identification
+        ),
         candidates=cands,
         cv=args.cv,
         max_effects=args.max_effects,
         min_gain=args.min_gain,
+        noise_ratio=args.noise_ratio,
         progress=None if args.quiet else print,
     )
     report.to_json(args.json)
@@ -99,8 +104,23 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         action="append",
         default=[],
         help="recording the model was identified from (repeatable); the Preisach weights are then "
-        "refitted together with every candidate.  It is training data only: a REC holding the "
-        "same samples is left out of the diagnosis with a warning",
+        "refitted together with every candidate.  Default: the recordings MODEL carries (stored by "
+        "`preisach identify`).  It is training data only: a REC holding the same samples is left "
+        "out of the diagnosis with a warning",
+    )
+    p.add_argument(
+        "--no-stored-identification",
+        action="store_true",
+        help="ignore the identification recordings stored in MODEL (no refit of the weights "
+        "unless --identification is given)",
+    )
+    p.add_argument(
+        "--noise-ratio",
+        type=float,
+        default=2.0,
+        help="noise test: the verdict is 'none' only when nothing is kept and the held-out RMSE "
+        "is at most this many times the noise estimated from the data; above it 'unexplained' "
+        "(default 2)",
     )
     p.add_argument("--candidates", help="comma-separated candidate names (default: all)")
     p.add_argument(

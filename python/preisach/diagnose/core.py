@@ -21,7 +21,7 @@ from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
 from .locate import analyse_residuals
-from .report import DiagnosisReport, EffectReport, candidate_table, where_of
+from .report import DiagnosisReport, EffectReport, candidate_table, unexplained_of, where_of
 from .selection import run_selection
 
 __all__ = ["diagnose"]
@@ -121,6 +121,7 @@ def diagnose(
     noise_factor: float = 1.0,
     alpha: float = 0.01,
     max_effects: int = 3,
+    noise_ratio: float = 2.0,
     sigma: float | None = None,
     max_delay: float | None = None,
     progress: bool | Callable[[str], None] | None = True,
@@ -144,7 +145,9 @@ def diagnose(
         Recordings of the same device, preferably of experiments other than the
         identification (wiping-out, CML, multi-frequency sine, step-and-hold, noise).
     identification : Recording, path or sequence of them, optional
-        The recording(s) the model was identified from (e.g. the FOD sweep).  They are used
+        The recording(s) the model was identified from (e.g. the FOD sweep).  Default: the
+        ones the model carries (:attr:`PreisachModel.identification`, stored by
+        ``preisach identify``); pass an empty list to diagnose without them.  They are used
         for training only; with them the Preisach weights are refitted together with every
         candidate (the sweep carries the effect too, so the identified model has absorbed
         part of it).  A diagnosis recording with the same input and output samples as an
@@ -187,6 +190,13 @@ def diagnose(
         Level of the one-sided sign-flip test over held-out blocks (default 0.01).
     max_effects : int
         Most effects kept (default 3).
+    noise_ratio : float
+        The noise test: the held-out residual after the kept effects is consistent with the
+        noise when its RMS is at most ``noise_ratio`` times the noise (default 2, i.e. an
+        excess variance of at most 3 noise variances; a re-identified classical model on
+        effect-free data leaves 1.4-1.7 x, its own discretisation error).  Nothing kept and
+        above the bound: verdict ``"unexplained"``; effects kept and above it: the remainder
+        is reported as :attr:`DiagnosisReport.unexplained`.
     sigma : float, optional
         Noise standard deviation (V) when known; default estimated from the data.
     max_delay : float, optional
@@ -207,6 +217,8 @@ def diagnose(
     t_start = time.perf_counter()
     if not isinstance(model, PreisachModel):
         raise TypeError(f"model: expected a PreisachModel, got {type(model).__name__}")
+    if not (np.isfinite(noise_ratio) and noise_ratio >= 1):
+        raise ValueError(f"noise_ratio: must be a finite number >= 1, got {noise_ratio!r}")
     for name, v in (("min_gain", min_gain), ("noise_factor", noise_factor)):
         if not (np.isfinite(v) and v >= 0):
             raise ValueError(f"{name}: must be a finite number >= 0, got {v!r}")
@@ -214,7 +226,11 @@ def diagnose(
         raise ValueError(f"alpha: must lie in (0, 1), got {alpha!r}")
     if int(max_effects) < 0:
         raise ValueError(f"max_effects: must be >= 0, got {max_effects!r}")
-    ident_in = _load(identification)
+    ident_in = (
+        list(getattr(model, "identification", []))
+        if identification is None
+        else _load(identification)
+    )
     recs_in = _drop_identification(_load(recordings), ident_in)
     cands: list[Candidate] = []
     for c in candidates if candidates is not None else list(CANDIDATES):
@@ -423,6 +439,16 @@ def diagnose(
         sigma_hat,
         u_span=ctx.u_span,
     )
+    ratio = rmse_after / sigma_hat if sigma_hat > 0 else float("inf")
+    consistent = bool(ratio <= noise_ratio)
+    noise_test = {"ratio": ratio, "threshold": float(noise_ratio), "consistent": consistent}
+    unexplained = None
+    if not consistent:
+        unexplained = unexplained_of(
+            dsub, [res_after[i] for i in diag], after_a, ctx.u_span, ratio, noise_ratio
+        )
+    verdict = names[0] if names else ("none" if consistent else "unexplained")
+    aug.metadata["diagnosis"]["verdict"] = verdict
     notes = []
     if sel.refit_baseline is not None:
         notes.append(
@@ -430,7 +456,7 @@ def diagnose(
             f"{1e3 * sel.refit_baseline.rmse:.4g} mV"
         )
     report = DiagnosisReport(
-        verdict=names[0] if names else "none",
+        verdict=verdict,
         effects=effects,
         rmse_before=rmse_before,
         rmse_after=rmse_after,
@@ -441,6 +467,8 @@ def diagnose(
         candidates=candidate_table(steps),
         seconds=time.perf_counter() - t_start,
         notes=notes,
+        noise_test=noise_test,
+        unexplained=unexplained,
         _recs=dsub,
         _pred_before=[pred0[i] for i in diag],
         _pred_after=[pred_after[i] for i in diag],

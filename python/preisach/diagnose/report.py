@@ -77,7 +77,10 @@ class DiagnosisReport:
     Attributes
     ----------
     verdict : str
-        Name of the most important effect, or ``"none"``.
+        Name of the most important effect; ``"none"`` when nothing was kept and the held-out
+        residual is consistent with the noise (its RMS at most ``noise_ratio`` times the
+        noise, see :attr:`noise_test`); ``"unexplained"`` when nothing was kept although the
+        residual is clearly above the noise (:attr:`unexplained` says where it lives).
     effects : list of EffectReport
         Kept effects, most important first (the order of the forward selection).
     rmse_before : float
@@ -93,6 +96,13 @@ class DiagnosisReport:
         Residual analysis of the given model and of the augmented model (held-out).
     candidates : list of dict
         Every candidate in every selection step: held-out RMSE, gain, p-value, decision.
+    noise_test : dict
+        ``ratio`` (held-out RMSE after the kept effects over the noise), ``threshold`` and
+        ``consistent`` (``ratio <= threshold``).
+    unexplained : dict or None
+        When the final held-out residual is above ``threshold`` times the noise: ``ratio``,
+        ``statement`` (the localisation in words), ``where`` (recordings, input range,
+        direction, band) and ``follows`` (significant covariates); else None.
 
     """
 
@@ -107,6 +117,8 @@ class DiagnosisReport:
     candidates: list[dict[str, Any]]
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
+    noise_test: dict[str, Any] = field(default_factory=dict)
+    unexplained: dict[str, Any] | None = None
     _recs: list[Any] = field(default_factory=list, repr=False)
     _pred_before: list[Array] = field(default_factory=list, repr=False)
     _pred_after: list[Array] = field(default_factory=list, repr=False)
@@ -120,6 +132,9 @@ class DiagnosisReport:
             "effects": [e.to_dict() for e in self.effects],
             "rmse_before": self.rmse_before,
             "rmse_after": self.rmse_after,
+            "noise_sigma": self.noise_sigma,
+            "noise_test": self.noise_test,
+            "unexplained": self.unexplained,
         }
 
     def to_json(self, path: PathLike | None = None, *, indent: int = 2) -> str:
@@ -154,6 +169,14 @@ class DiagnosisReport:
             f"RMSE {mv * self.rmse_before:.4g} mV (given model) -> {mv * self.rmse_after:.4g} mV "
             f"(augmented, held-out); noise {mv * self.noise_sigma:.3g} mV",
         ]
+        if self.noise_test:
+            nt = self.noise_test
+            lines.append(
+                f"held-out RMSE / noise = {nt['ratio']:.3g} "
+                f"({'within' if nt['consistent'] else 'above'} the {nt['threshold']:g} x bound)"
+            )
+        if self.unexplained is not None:
+            lines.append(f"unexplained: {self.unexplained['statement']}")
         lines += [f"note: {n}" for n in self.notes]
         for k, e in enumerate(self.effects, 1):
             lines.append(f"{k}. {e.name}: {e.statement}")
@@ -420,6 +443,61 @@ def where_of(recs: list[Rec], correction: list[Array], u_span: float) -> dict[st
         ]
         where["peak_Hz"] = float(f_axis[int(np.argmax(spec_acc))])
     return where
+
+
+def unexplained_of(
+    recs: list[Rec],
+    residual: list[Array],
+    analysis: ResidualAnalysis,
+    u_span: float,
+    ratio: float,
+    threshold: float,
+) -> dict[str, Any]:
+    """Localise a residual that no candidate explains, in numbers and in words."""
+    res = [np.nan_to_num(np.where(r.usable, x, np.nan)) for r, x in zip(recs, residual)]
+    where = where_of(recs, res, u_span)
+    follows = [
+        {"covariate": c.name, "eta2": c.eta2, "p_value": c.p_value}
+        for c in analysis.strongest(3, alpha=0.01)
+    ]
+    words = [f"the held-out residual is {ratio:.3g} x the noise (bound {threshold:g} x)"]
+    recs_share = where.get("recordings", {})
+    if recs_share:
+        top = list(recs_share.items())[:2]
+        words.append(
+            "mostly in " + " and ".join(f"{k!r} ({100 * v:.0f} % of its power)" for k, v in top)
+        )
+    if "input_range_V" in where:
+        lo, hi = where["input_range_V"]
+        words.append(f"80 % of it at inputs {lo:.3g}-{hi:.3g} V")
+    d = where.get("direction", {})
+    if d:
+        k = max(d, key=lambda q: d[q])
+        words.append(f"{100 * d[k]:.0f} % while {k}")
+    if "band_Hz" in where:
+        a, b = where["band_Hz"]
+        words.append(f"80 % of its power in {a:.3g}-{b:.3g} Hz (peak {where['peak_Hz']:.3g} Hz)")
+    nr = where.get("near_reversals", {})
+    if nr and nr.get("time_share", 0) > 0 and nr["power_share"] > 2 * nr["time_share"]:
+        words.append(
+            f"{100 * nr['power_share']:.0f} % of it within 50 ms after reversals "
+            f"({100 * nr['time_share']:.0f} % of the time)"
+        )
+    if follows:
+        words.append(
+            "follows "
+            + ", ".join(
+                f"{f['covariate']} (eta^2 {f['eta2']:.2f}, p {f['p_value']:.2g})" for f in follows
+            )
+        )
+    else:
+        words.append("follows none of the tested covariates significantly")
+    return {
+        "ratio": ratio,
+        "statement": "; ".join(words),
+        "where": where,
+        "follows": follows,
+    }
 
 
 def candidate_table(steps: list[StepResult]) -> list[dict[str, Any]]:

@@ -127,6 +127,7 @@ def _identify(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.parent and not out.parent.exists():
         raise OSError(f"{out.parent}: output folder does not exist")
+    model.identification = list(recs)  # diagnosis refits the weights on them by default
     model.save(out)
     print(report.summary())
     print(f"wrote {out}")
