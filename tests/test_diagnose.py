@@ -455,3 +455,49 @@ def test_candidate_blocks_are_not_shared_between_threads():
     with ThreadPoolExecutor(2) as ex:
         there = ex.submit(cand.block, x, 1e-3).result()
     assert there is not here and type(there) is type(here)
+
+
+def test_unknown_initial_state_is_a_nuisance_not_a_mask():
+    """A recording that never visits both extremes is diagnosed whole, from the right history."""
+    m = PreisachModel.builtin("ss15-1hz", levels=41)
+    t = np.arange(3000) * 1e-3
+    u = -20 + 40 * np.sin(2 * np.pi * 1.0 * t)  # mid-range, never near the range ends
+    came_from_above = m.simulate(np.array([m.u_max, u[0]]), m.positive_saturation()).final_state
+    y = m.simulate(u, came_from_above).output + np.random.default_rng(1).normal(0, 1e-3, t.size)
+    rec = Recording.from_arrays(t=t, u=u, y=y, experiment="mid")
+    (prep,) = prepare_recordings(m, [rec])
+    assert prep.usable.all()
+    assert prep.start == "unknown: fell from positive saturation"
+    (old,) = prepare_recordings(m, [rec], initial_states=["anhysteretic"])
+    assert old.start == "anhysteretic"
+
+
+def test_drift_that_follows_the_steps_is_not_a_drift():
+    """The drift test: a slow response to the output's moves is creep-like, a ramp is not."""
+    from preisach.diagnose.context import Chain, Context, signal_lag
+
+    m = PreisachModel.builtin("ss15-1hz", levels=41)
+    t = np.arange(8000) * 1e-3
+    u = np.repeat([-90.0, 40.0, -30.0, 80.0, -60.0, 20.0, -80.0, 60.0], 1000)
+    p = m.simulate(u, m.negative_saturation()).output
+    noise = np.random.default_rng(2).normal(0, 1e-3, t.size)
+    creep = 0.03 * (signal_lag(p, np.exp(-1e-3 / 0.5)) - p)
+    shares = {}
+    for name, extra in (("creep", creep), ("ramp", 0.02 * t / t[-1])):
+        rec = Recording.from_arrays(t=t, u=u, y=p + extra + noise, experiment=name)
+        ctx = Context(m, prepare_recordings(m, [rec]))
+        shares[name] = ctx.drift_step_share(Chain(ctx.given))
+    assert shares["creep"] > 0.5 > shares["ramp"]
+
+
+def test_a_mode_that_does_not_ring_is_not_a_resonance():
+    from types import SimpleNamespace
+
+    from preisach.diagnose.candidates import DelayCandidate, ModeCandidate
+
+    ctx = SimpleNamespace(dt_min=1e-3, max_delay=0.05)
+    mode = ModeCandidate()
+    assert "does not ring" in mode.implausible(np.array([49.0, 0.49, 1.0]), ctx)
+    assert mode.implausible(np.array([49.0, 0.05, 1.0]), ctx) is None
+    assert "bound" in DelayCandidate().implausible(np.array([0.05]), ctx)
+    assert DelayCandidate().implausible(np.array([0.003]), ctx) is None

@@ -154,6 +154,14 @@ class Candidate:
         """One line a user can act on."""
         raise NotImplementedError
 
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        """Why the fitted ``x`` does not fit this effect's name (None when it does).
+
+        A fit whose parameters contradict its name (a "resonance" that does not ring, a
+        parameter pinned at its bound) is not kept under that name.
+        """
+        return None
+
 
 def _pm(v: float, e: float, fmt: str = ".3g") -> str:
     """``value ± uncertainty`` with the value rounded to the uncertainty's second digit."""
@@ -190,6 +198,11 @@ class DelayCandidate(Candidate):
 
     def params(self, x: Array) -> dict[str, Any]:
         return {"tau": max(float(x[0]), 0.0)}
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        if x[0] >= 0.98 * ctx.max_delay:
+            return f"delay at its bound ({1e3 * x[0]:.3g} ms): a slower effect, not a delay"
+        return None
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         ms, e = 1e3 * x[0], 1e3 * _sd(cov, 0)
@@ -349,6 +362,19 @@ class ModeCandidate(Candidate):
     def params(self, x: Array) -> dict[str, Any]:
         return {"f_n": float(x[0]), "zeta": float(x[1]), "participation": float(x[2])}
 
+    #: Largest damping ratio of a mode that rings (a visible overshoot: 37 % at 0.3).
+    MAX_ZETA: ClassVar[float] = 0.3
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        if x[1] >= self.MAX_ZETA:
+            return (
+                f"damping ratio {x[1]:.2g} >= {self.MAX_ZETA:g}: the fitted response does not "
+                "ring, so it is a lag or delay, not a resonance"
+            )
+        if x[0] >= 0.98 * 0.45 / ctx.dt_min or x[0] <= 1.02:
+            return f"mode frequency {x[0]:.4g} Hz at its bound"
+        return None
+
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         return (
             f"a structural mode at {_pm(x[0], _sd(cov, 0))} Hz (damping ratio "
@@ -365,7 +391,10 @@ class CreepCandidate(Candidate):
     order = 1
     physics = "after input changes the output keeps drifting toward its equilibrium (creep)"
     block_type = PronyCreep
-    TAUS: ClassVar[tuple[float, ...]] = (0.02, 0.2, 2.0, 20.0)
+    #: A log-spaced bank of relaxation modes (two per decade) with non-negative weights: a
+    #: family broad enough for a logarithmic law, a few discrete lags or a stretched
+    #: exponential, whatever its form.
+    TAUS: ClassVar[tuple[float, ...]] = (0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)
 
     def prepare(self, ctx: Context) -> None:
         longest = ctx.longest_duration
@@ -389,7 +418,8 @@ class CreepCandidate(Candidate):
         parts = ", ".join(
             f"{100 * ci:.2g} % with {t:g} s" for ci, t in zip(c, self.taus) if ci > 1e-4
         )
-        per_decade = 100 * float(np.mean(c))
+        spacing = math.log10(self.taus[1] / self.taus[0]) if len(self.taus) > 1 else 1.0
+        per_decade = 100 * float(np.mean(c)) / spacing
         return (
             f"after input changes the output keeps creeping: {parts or 'none'} "
             f"(about {per_decade:.2g} % of a move per decade of time; settled gain {x[0]:.4g}); "

@@ -31,7 +31,7 @@ from .effects import OutputFeedback
 if TYPE_CHECKING:
     from .problem import Problem
 
-__all__ = ["Base", "Chain", "Context", "FittedEffect", "Fold", "Stage"]
+__all__ = ["Base", "Chain", "Context", "FittedEffect", "Fold", "Stage", "signal_lag"]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -82,6 +82,14 @@ class Fold:
 
     train: list[Mask]
     test: list[Mask]
+
+
+def signal_lag(x: Array, pole: float) -> Array:
+    """First-order lag of ``x`` (pole ``exp(-dt/tau)``) started at its steady state ``x[0]``."""
+    from scipy import signal
+
+    y, _ = signal.lfilter([1 - pole], [1.0, -pole], x, zi=[pole * float(x[0])])
+    return np.asarray(y)
 
 
 class Context:
@@ -322,6 +330,38 @@ class Context:
         return float(
             sum(self._drift_system(self.drift_basis(i)[self.recs[i].usable])[1] for i in self.diag)
         )
+
+    def drift_step_share(self, chain: Chain) -> float:
+        """Share of the fitted drift curves' variance that follows the model output's moves.
+
+        Per diagnosis recording the drift P-spline is fitted to the chain's residual on the
+        usable samples; the curve is regressed (least squares, per-recording means removed)
+        on slow responses to the chain's output ``P``: ``lag_tau(P) - P`` for first-order lags
+        with time constants log-spaced from 0.05 s to a fifth of the recording (responses that
+        settle within it; slower ones could build any trend).  A sensor drift has nothing to
+        do with those; creep is made of them.
+        """
+        num = den = 0.0
+        for i in self.diag:
+            r = self.recs[i]
+            m = r.usable
+            p = self.predict_one(i, chain)
+            d = (self.drift_basis(i) @ self.drift_fit(i, r.y - p, m))[m]
+            d = d - d.mean()
+            T = max(float(r.t[-1] - r.t[0]), 1e-9)
+            taus = np.geomspace(max(0.05, 5 * r.dt), max(T / 5, 0.1), 6)
+            cols = []
+            for tau in taus:
+                pole = math.exp(-r.dt / tau)
+                g = signal_lag(p, pole) - p
+                g = g[m]
+                cols.append(g - g.mean())
+            G = np.stack(cols, axis=1)
+            coef, *_ = np.linalg.lstsq(G, d, rcond=None)
+            fit = G @ coef
+            num += float(d @ d - (d - fit) @ (d - fit))
+            den += float(d @ d)
+        return num / den if den > 0 else 0.0
 
     def drift_heldout(self, i: int, res: Array, test: Mask) -> Array:
         """Drift predicted on the ``test`` samples, fitted on the other-parity usable samples.

@@ -22,9 +22,40 @@ from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
 from .locate import analyse_residuals
 from .report import DiagnosisReport, EffectReport, candidate_table, unexplained_of, where_of
+from .scoring import sign_flip_p
 from .selection import run_selection
 
-__all__ = ["diagnose"]
+__all__ = ["diagnose", "separating_experiment"]
+
+#: The experiment that tells two explanations apart (unordered pairs of effect names).
+SEPARATING: dict[frozenset[str], str] = {
+    frozenset({"creep", "sensor_drift"}): "a step-and-hold (creep follows the step and settles; "
+    "a drift goes on regardless of the input)",
+    frozenset({"delay", "rate_dependence"}): "the same loop at several drive frequencies with "
+    "sharp reversals (a delay shifts the whole output in time; rate dependence widens the loops "
+    "with the rate)",
+    frozenset({"delay", "structural_resonance"}): "a fast input step (a mode overshoots and rings; "
+    "a delay only shifts the step)",
+    frozenset({"creep", "rate_dependence"}): "a step-and-hold (creep keeps moving during the "
+    "hold; rate dependence acts only while the input moves)",
+    frozenset({"non_congruence", "rate_dependence"}): "the same minor loop at several rates and "
+    "at several output levels (rate dependence changes with the rate, non-congruence with the "
+    "level)",
+    frozenset({"non_congruence", "sensor_drift"}): "the same minor loop repeated at the start and "
+    "the end of a run (a drift moves it, non-congruence does not)",
+    frozenset({"delay", "creep"}): "a step-and-hold (a delay is over within milliseconds, creep "
+    "goes on for seconds)",
+}
+
+
+def separating_experiment(a: str, b: str) -> str:
+    """Name the experiment that separates effect ``a`` from effect ``b``."""
+    return SEPARATING.get(
+        frozenset({a, b}),
+        "experiments that excite one of them alone (steps and holds, several rates, several "
+        "output levels)",
+    )
+
 
 RecordingLike = Union[Recording, str, "os.PathLike[str]"]
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -159,11 +190,14 @@ def diagnose(
         ``sensor_drift``, ``non_congruence``, ``gain_offset``, ``sensor_nonlinearity``.
     initial_states : sequence, optional
         One per recording: a :class:`~preisach.State` or ``"negative_saturation"``,
-        ``"positive_saturation"``, ``"anhysteretic"``, ``"unknown"``, or None.  Default
-        (None): the recording's ``initial_state`` metadata, else negative/positive
-        saturation when the input starts within 1 % of the range ends, else unknown
-        (anhysteretic state, and the samples before the input has visited both its
-        extremes are not scored).
+        ``"positive_saturation"``, ``"anhysteretic"``, ``"unknown"``, ``"burn_in"`` or
+        None.  Default (None): the recording's ``initial_state`` metadata, else
+        negative/positive saturation when the input starts within 1 % of the range ends,
+        else unknown: the initial state is a nuisance parameter, chosen among a rise from
+        negative saturation, a fall from positive saturation and the anhysteretic state by
+        the given model's least-squares fit to the recording, and every sample is scored
+        (``"burn_in"``: the anhysteretic state with the samples before the input has visited
+        both its extremes left out, the earlier behaviour).
     refit : bool, optional
         Refit the Preisach weights with every candidate (default: when ``identification`` is
         given).
@@ -314,6 +348,7 @@ def diagnose(
         ]
 
     drift_so_far = False
+    ambiguous: list[dict[str, str]] = []
     for k, key in enumerate(kept):
         cand = by_key[key]
         name = cand.name
@@ -358,7 +393,24 @@ def diagnose(
             (n for n in st.scores if by_key[n].name != name and st.gains[n] > 0),
             key=lambda n: -st.gains[n],
         )
-        if others and st.gains[others[0]] > 0.8 * gain:
+        rivals = [
+            n
+            for n in others
+            if st.qualifies[n]
+            and sign_flip_p(st.scores[n].sse_blocks - sc.sse_blocks, seed=k) >= 0.05
+        ]
+        if rivals:
+            o = by_key[rivals[0]].name
+            ev += (
+                f"; AMBIGUOUS: {rivals[0]} explains the data equally well within the noise "
+                f"({100 * st.gains[rivals[0]]:.0f} % lower, {st.n_params[rivals[0]]:.3g} "
+                f"parameters; sign-flip p >= 0.05); to separate {name} from {o}: "
+                f"{separating_experiment(name, o)}"
+            )
+            ambiguous.append(
+                {"effect": name, "rival": o, "experiment": separating_experiment(name, o)}
+            )
+        elif others and st.gains[others[0]] > 0.8 * gain:
             ev += (
                 f"; also nearly as good: {others[0]} ({100 * st.gains[others[0]]:.0f} % lower, "
                 f"{st.n_params[others[0]]:.3g} parameters)"
@@ -449,7 +501,10 @@ def diagnose(
         )
     verdict = names[0] if names else ("none" if consistent else "unexplained")
     aug.metadata["diagnosis"]["verdict"] = verdict
-    notes = []
+    notes = [
+        f"{a['effect']} or {a['rival']}: equal within the noise; {a['experiment']}"
+        for a in ambiguous
+    ]
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "

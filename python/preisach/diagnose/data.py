@@ -66,6 +66,36 @@ def _burn_in(u: Array, tol: float) -> int:
     return min(u.size, second + max(1, u.size // 20))
 
 
+def _initial_state(model: PreisachModel, u: Array, y: Array) -> tuple[State, str]:
+    """Choose an unknown initial state: a nuisance parameter, not a reason to discard data.
+
+    Three histories could have led to the first input ``u[0]``: a rise from negative
+    saturation, a fall from positive saturation, or a demagnetised (anhysteretic) start.  The
+    one whose simulation fits the recording best (least squares over all its samples, which
+    differ only until the input has wiped the start out) is taken; every sample is scored,
+    so a ring after the first step counts as evidence.
+    """
+    from .. import _core
+
+    table = model.table
+    lo, hi = model.u_min, model.u_max
+    u0 = float(np.clip(u[0], lo, hi))
+    states = {
+        "unknown: rose from negative saturation": _core.simulate(
+            table, np.array([lo, u0]), model.negative_saturation(), "clamp"
+        )[1],
+        "unknown: fell from positive saturation": _core.simulate(
+            table, np.array([hi, u0]), model.positive_saturation(), "clamp"
+        )[1],
+        "unknown: anhysteretic": model.anhysteretic_state(),
+    }
+    best = min(
+        states,
+        key=lambda k: float(np.sum((y - _core.simulate(table, u, states[k], "clamp")[0]) ** 2)),
+    )
+    return states[best], best
+
+
 def prepare_recordings(
     model: PreisachModel,
     recordings: Sequence[Recording],
@@ -123,14 +153,18 @@ def prepare_recordings(
             s0, start = model.negative_saturation(), spec
         elif spec == "positive_saturation":
             s0, start = model.positive_saturation(), spec
-        elif spec in ("anhysteretic", "unknown"):
+        elif spec == "anhysteretic":
             s0, start = model.anhysteretic_state(), spec
-            if spec == "unknown":
-                usable[: _burn_in(u, tol)] = False
+        elif spec == "unknown":
+            s0, start = _initial_state(model, u, np.asarray(r.y, float))
+        elif spec == "burn_in":
+            s0, start = model.anhysteretic_state(), spec
+            usable[: _burn_in(u, tol)] = False
         else:
             raise ValueError(
                 f"initial state of {name!r}: expected a State or one of "
-                f"'negative_saturation', 'positive_saturation', 'anhysteretic', 'unknown'; "
+                f"'negative_saturation', 'positive_saturation', 'anhysteretic', 'unknown', "
+                "'burn_in'; "
                 f"got {spec!r}"
             )
         if usable.sum() < 20:

@@ -81,6 +81,29 @@ class Selection:
     refit_baseline: Score | None
 
 
+def _implausible(ctx: Context, cand: Candidate, chains: list[Chain]) -> str | None:
+    """Why the candidate's fitted parameters contradict its name, in any fold (or None).
+
+    A sensor drift must not follow the input: when a slow response to the model output's
+    moves (first-order lags from 0.05 s to a fifth of each recording) explains more than
+    half of the fitted drift curves' variance, it is a creep-like effect, not a drift.
+    """
+    if isinstance(cand, DriftCandidate):
+        share = max(ctx.drift_step_share(ch) for ch in chains)
+        if share > 0.5:
+            return (
+                f"the drift follows the input steps ({100 * share:.0f} % of its variance is a "
+                "slow response to the output's moves): creep-like, not a drift"
+            )
+        return None
+    for ch in chains:
+        if ch.effects and ch.effects[-1].cand is cand:
+            why = cand.implausible(ch.effects[-1].x, ctx)
+            if why:
+                return why
+    return None
+
+
 def _choose(
     quals: list[str], scores: dict[str, Score], n_par: dict[str, float], tie_alpha: float, seed: int
 ) -> str:
@@ -188,6 +211,10 @@ def run_selection(
                 reasons.append(
                     f"not significant over held-out blocks (p = {pv[name]:.3g} >= {alpha:g})"
                 )
+            if not reasons:  # only the qualifying fits are checked against their names
+                bad = _implausible(ctx, remaining[name], new_chains[name])
+                if bad:
+                    reasons.append(f"implausible for its name: {bad}")
             ok[name] = not reasons
             why[name] = "; ".join(reasons) if reasons else "qualifies"
         quals = [n for n in scores if ok[n]]
