@@ -69,31 +69,46 @@ def _burn_in(u: Array, tol: float) -> int:
 def _initial_state(model: PreisachModel, u: Array, y: Array) -> tuple[State, str]:
     """Choose an unknown initial state: a nuisance parameter, not a reason to discard data.
 
-    Three histories could have led to the first input ``u[0]``: a rise from negative
-    saturation, a fall from positive saturation, or a demagnetised (anhysteretic) start.  The
-    one whose simulation fits the recording best (least squares over all its samples, which
-    differ only until the input has wiped the start out) is taken; every sample is scored,
-    so a ring after the first step counts as evidence.
+    The candidates are the states that histories of up to three turns leave at the first
+    input ``u[0]``: from negative (positive) saturation straight to ``u[0]``; via one turning
+    point ``a`` on a 41-level grid; via two, ``a`` and ``b``, on an 11-level grid; and the
+    anhysteretic state.  The one whose simulation by the given model fits the recording best
+    (least squares over all its samples, which differ only until the input has wiped the
+    start out) is taken, and every sample is scored, so a ring after the first step counts
+    as evidence.
     """
     from .. import _core
 
     table = model.table
     lo, hi = model.u_min, model.u_max
     u0 = float(np.clip(u[0], lo, hi))
-    states = {
-        "unknown: rose from negative saturation": _core.simulate(
-            table, np.array([lo, u0]), model.negative_saturation(), "clamp"
-        )[1],
-        "unknown: fell from positive saturation": _core.simulate(
-            table, np.array([hi, u0]), model.positive_saturation(), "clamp"
-        )[1],
-        "unknown: anhysteretic": model.anhysteretic_state(),
-    }
-    best = min(
-        states,
-        key=lambda k: float(np.sum((y - _core.simulate(table, u, states[k], "clamp")[0]) ** 2)),
-    )
-    return states[best], best
+    neg, pos = model.negative_saturation(), model.positive_saturation()
+    paths: list[tuple[str, State, list[float]]] = [
+        ("anhysteretic", model.anhysteretic_state(), []),
+        ("rose from negative saturation", neg, [u0]),
+        ("fell from positive saturation", pos, [u0]),
+    ]
+    fine = np.linspace(lo, hi, 41)
+    coarse = np.linspace(lo, hi, 11)
+    for a in fine:
+        if a > u0:
+            paths.append((f"from negative saturation via {a:.3g} V", neg, [a, u0]))
+        elif a < u0:
+            paths.append((f"from positive saturation via {a:.3g} V", pos, [a, u0]))
+    for a in coarse:
+        for b in coarse:
+            if a > u0 > b:
+                paths.append((f"from negative saturation via {a:.3g}, {b:.3g} V", neg, [a, b, u0]))
+            elif a < u0 < b:
+                paths.append((f"from positive saturation via {a:.3g}, {b:.3g} V", pos, [a, b, u0]))
+    best: tuple[float, str, State] | None = None
+    for what, s0, path in paths:
+        st = _core.simulate(table, np.array(path), s0, "clamp")[1] if path else s0
+        sse = float(np.sum((y - _core.simulate(table, u, st, "clamp")[0]) ** 2))
+        if best is None or sse < best[0]:
+            best = (sse, what, st)
+    assert best is not None
+    return best[2], f"unknown: {best[1]}"
 
 
 def prepare_recordings(
