@@ -19,6 +19,7 @@ null case); for mixtures the second kind found is counted too.  ``unexplained`` 
 apart: not right, but not a wrong name either.  Printed: the confusion matrix per pass, right
 per kind, false alarms on nulls, the held-out gain when right.
 
+    python scripts/blind/blind_generator.py OUTDIR ...     (see scripts/blind/README.md)
     python scripts/blind_study.py OUTDIR [--passes default,bare] [--workers 2] [--work DIR]
 """
 
@@ -51,8 +52,11 @@ PASS_ARGS = {
 }
 
 
+CLI: list[str] = [sys.executable, "-m", "preisach.cli"]
+
+
 def _cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "preisach.cli", *args]
+    return [*CLI, *args]
 
 
 def run_case(case: Path, truth: dict[str, Any], work: Path, passes: list[str]) -> dict[str, Any]:
@@ -176,7 +180,14 @@ def main() -> int:
     ap.add_argument("--work", type=Path, default=Path("blind_work"))
     ap.add_argument("--cases", help="comma-separated case names (default: all)")
     ap.add_argument("--json", type=Path, help="write all results here")
+    ap.add_argument(
+        "--cli",
+        help="command that runs the preisach command line (default: python -m preisach.cli), "
+        "e.g. a frozen copy of the package while the working tree changes",
+    )
     args = ap.parse_args()
+    if args.cli:
+        CLI[:] = args.cli.split()
     passes = [p for p in args.passes.split(",") if p]
     for p in passes:
         if p not in PASS_ARGS:
