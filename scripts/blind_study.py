@@ -88,21 +88,44 @@ def run_case(case: Path, truth: dict[str, Any], work: Path, passes: list[str]) -
             out["passes"][name] = {"error": r.stderr.strip()[-300:]}
             continue
         rep = json.loads(rj.read_text())
-        effs = rep["effects"]
-        first = effs[0] if effs else None
-        out["passes"][name] = {
-            "verdict": rep["verdict"],
-            "effects": [e["name"] for e in effs],
-            "gain": (
-                1 - first["heldout_rmse_after"] / first["heldout_rmse_before"] if first else 0.0
-            ),
-            "total_gain": 1 - rep["rmse_after"] / rep["rmse_before"] if effs else 0.0,
-            "ratio": rep.get("noise_test", {}).get("ratio"),
-            "unexplained": (rep.get("unexplained") or {}).get("statement"),
-            "seconds": time.perf_counter() - t1,
-        }
+        out["passes"][name] = _outcome(rep)
+        out["passes"][name]["seconds"] = time.perf_counter() - t1
     out["seconds"] = time.perf_counter() - t0
     return out
+
+
+def _outcome(rep: dict[str, Any]) -> dict[str, Any]:
+    """Verdict, kept effects, gains and the noise ratio of one diagnosis report (JSON)."""
+    effs = rep["effects"]
+    first = effs[0] if effs else None
+    return {
+        "verdict": rep["verdict"],
+        "effects": [e["name"] for e in effs],
+        "gain": (1 - first["heldout_rmse_after"] / first["heldout_rmse_before"] if first else 0.0),
+        "total_gain": 1 - rep["rmse_after"] / rep["rmse_before"] if effs else 0.0,
+        "ratio": rep.get("noise_test", {}).get("ratio"),
+        "unexplained": (rep.get("unexplained") or {}).get("statement"),
+    }
+
+
+def collect(outdir: Path, work: Path, passes: list[str]) -> list[dict[str, Any]]:
+    """Results of the cases already run into ``work`` (``r_<pass>.json`` per case folder)."""
+    results = []
+    for d in sorted(p for p in work.iterdir() if p.is_dir()):
+        truth = outdir / "truth" / f"{d.name}.json"
+        if not truth.exists():
+            continue
+        r: dict[str, Any] = {
+            "case": d.name,
+            "kinds": json.loads(truth.read_text())["kinds"],
+            "passes": {},
+        }
+        for name in passes:
+            f = d / f"r_{name}.json"
+            if f.exists():
+                r["passes"][name] = _outcome(json.loads(f.read_text()))
+        results.append(r)
+    return results
 
 
 def right(kinds: list[str], verdict: str) -> bool:
@@ -185,6 +208,11 @@ def main() -> int:
         help="command that runs the preisach command line (default: python -m preisach.cli), "
         "e.g. a frozen copy of the package while the working tree changes",
     )
+    ap.add_argument(
+        "--summarise",
+        action="store_true",
+        help="run nothing: summarise the reports already in --work",
+    )
     args = ap.parse_args()
     if args.cli:
         CLI[:] = args.cli.split()
@@ -197,6 +225,13 @@ def main() -> int:
     if args.cases:
         want = set(args.cases.split(","))
         cases = [c for c in cases if c.name in want]
+    if args.summarise:
+        results = collect(args.outdir, args.work, passes)
+        print(f"blind study (summary of {args.work}): {len(results)} cases, passes {passes}")
+        for p in passes:
+            print()
+            print("\n".join(summarise(results, p)))
+        return 0
     t0 = time.perf_counter()
 
     def one(case: Path) -> dict[str, Any]:
