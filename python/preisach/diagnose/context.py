@@ -145,7 +145,7 @@ class Context:
         self.refit = bool(refit)
         if self.refit:
             lv = model.levels
-            if lv.size > 41 or lv.size < refit_levels:
+            if lv.size > 41:
                 lv = np.linspace(model.u_min, model.u_max, int(refit_levels))
             self.levels = lv
             n = lv.size
