@@ -113,6 +113,7 @@ def identify(
     folds: int = 5,
     solver: str = "auto",
     y_min_source: str = "column_mean",
+    progress: bool = True,
 ) -> IdentificationReport:
     """Identify a model from recordings with the method the data call for (or the one given).
 
@@ -139,6 +140,8 @@ def identify(
         lsq: the least-squares solver.
     y_min_source : {"column_mean", "corner"}
         surface: where ``y_min`` comes from.
+    progress : bool
+        lsq: show a progress bar over the cross-validation fits (``False``: nothing).
 
     Returns
     -------
@@ -216,6 +219,7 @@ def identify(
             delay=0,
             name=name,
             solver=solver,
+            progress=progress,
         )
     if mirrored:
         model = mirror_model(rep.model)

@@ -122,12 +122,14 @@ def _identify(args: argparse.Namespace) -> int:
             folds=args.folds,
             solver=args.solver,
             y_min_source=args.y_min_source or "column_mean",
+            progress=not args.quiet,
         )
     model = report.model
     out = Path(args.output)
     if out.parent and not out.parent.exists():
         raise OSError(f"{out.parent}: output folder does not exist")
-    model.identification = list(recs)  # diagnosis refits the weights on them by default
+    if not forc:  # diagnosis refits the weights on them by default (not on FORC moments)
+        model.identification = list(recs)
     model.save(out)
     print(report.summary())
     print(f"wrote {out}")
@@ -257,6 +259,7 @@ def add_parser(subparsers: Any) -> None:
     p.add_argument("--name", default="", help="model name stored in the file")
     p.add_argument("--json", metavar="PATH", help="also write the report as JSON")
     p.add_argument("--plot", metavar="PNG", help="also write the report figure")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_identify)
 
     v = subparsers.add_parser(
