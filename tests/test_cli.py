@@ -86,7 +86,16 @@ def test_demo_leaves_recordings_and_models_that_load(demo):
         m = PreisachModel.load(out / f"{name}.npz")
         assert (m.u_min, m.u_max) == (-100.0, 100.0)
     diag = json.loads((out / "diagnosis.json").read_text())
-    assert set(diag) == {"verdict", "effects", "rmse_before", "rmse_after"}
+    # the issue's schema, plus the noise test behind none/unexplained (issue 13)
+    assert set(diag) == {
+        "verdict",
+        "effects",
+        "rmse_before",
+        "rmse_after",
+        "noise_sigma",
+        "noise_test",
+        "unexplained",
+    }
 
 
 def test_demo_rejects_bad_options(tmp_path, capsys):
