@@ -214,17 +214,24 @@ def run_selection(
             ok[name] = not reasons
             why[name] = "; ".join(reasons) if reasons else "qualifies"
         # a drift that follows the input steps is not named while an input-driven
-        # explanation (creep) qualifies too
-        creep_ok = any(ok[n] and remaining[n].name == "creep" for n in scores)
+        # explanation (creep) qualifies too and explains the held-out data about as well:
+        # a drift significantly better than every qualifying creep (paired sign-flip test
+        # over the held-out blocks) holds something the input history cannot explain
+        creeps = [n for n in scores if ok[n] and remaining[n].name == "creep"]
         for name in scores:
-            if ok[name] and isinstance(remaining[name], DriftCandidate) and creep_ok:
+            if ok[name] and isinstance(remaining[name], DriftCandidate) and creeps:
+                beats = all(
+                    sign_flip_p(scores[c].sse_blocks - scores[name].sse_blocks, seed=len(steps))
+                    < alpha
+                    for c in creeps
+                )
                 share = max(ctx.drift_step_share(ch) for ch in new_chains[name])
-                if share > 0.5:
+                if share > 0.5 and not beats:
                     ok[name] = False
                     why[name] = (
                         f"implausible for its name: the drift follows the input steps "
                         f"({100 * share:.0f} % of its variance is a slow response to the "
-                        "output's moves) and creep qualifies too"
+                        "output's moves) and creep explains the held-out data as well"
                     )
         quals = [n for n in scores if ok[n]]
         chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
