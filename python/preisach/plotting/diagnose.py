@@ -42,9 +42,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
             label="augmented (held-out)" if i == 0 else None,
         )
         ax.axvline(offset, color="k", lw=0.5)
-        ax.text(
-            offset, 1.0, f" {r.name}", transform=ax.get_xaxis_transform(), va="top", fontsize=7
-        )
+        ax.text(offset, 1.0, f" {r.name}", transform=ax.get_xaxis_transform(), va="top", fontsize=7)
         offset = t[-1] + 0.5
     ax.set_xlabel("time, recordings in sequence (s)")
     ax.set_ylabel("residual y_meas - y_sim (mV)")
@@ -55,13 +53,9 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
     sb, sa = report.before.spectrum, report.after.spectrum
     if sb:
         ax.semilogy(sb["f"], sb["output_psd"], color="0.3", lw=0.8, label="output y")
-        ax.semilogy(
-            sb["f"], sb["residual_psd"], color="0.6", lw=0.8, label="residual, given model"
-        )
+        ax.semilogy(sb["f"], sb["residual_psd"], color="0.6", lw=0.8, label="residual, given model")
     if sa:
-        ax.semilogy(
-            sa["f"], sa["residual_psd"], color="C3", lw=0.8, label="residual, augmented"
-        )
+        ax.semilogy(sa["f"], sa["residual_psd"], color="C3", lw=0.8, label="residual, augmented")
     if recs and report.noise_sigma > 0:
         dt = min(r.dt for r in recs)
         ax.axhline(
@@ -82,9 +76,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
     ax = axs[1, 0]
     im, ia = report.before.input_map, report.after.input_map
     for key, col in (("rising", "C1"), ("falling", "C0"), ("holding", "C2")):
-        ax.plot(
-            im["levels"], mv * im[f"{key}_mean"], "-o", ms=3, color=col, label=f"{key}, given"
-        )
+        ax.plot(im["levels"], mv * im[f"{key}_mean"], "-o", ms=3, color=col, label=f"{key}, given")
         ax.plot(
             ia["levels"],
             mv * ia[f"{key}_mean"],
