@@ -481,7 +481,9 @@ def _finite(o: Any) -> Any:
     return o
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``preisach demo``."""
     d = subparsers.add_parser(
         "demo",

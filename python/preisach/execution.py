@@ -48,10 +48,15 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ._io import atomic_write, write_text
 from ._progress import progress_bar
+
+if TYPE_CHECKING:  # pragma: no cover
+    import argparse
+
+    from distributed import Client, LocalCluster
 
 __all__ = [
     "SCHEDULER_HELP",
@@ -154,7 +159,7 @@ def parse_scheduler(spec: str | None) -> tuple[str, int | str | None]:
     return (kind, count)
 
 
-def add_scheduler_argument(parser: Any, default: str = "processes") -> None:
+def add_scheduler_argument(parser: argparse.ArgumentParser, default: str = "processes") -> None:
     """Add ``--scheduler`` and ``--store`` to an :mod:`argparse` parser (studies, sweeps)."""
     parser.add_argument(
         "--scheduler", default=default, help=SCHEDULER_HELP + f" (default: {default})"
@@ -250,7 +255,7 @@ def _call_dask(fn: Callable[..., Any], task: Any, **shared: Any) -> Any:
         return fn(task, **shared)
 
 
-def _dask_client(kind: str, arg: int | str | None) -> tuple[Any, Any]:
+def _dask_client(kind: str, arg: int | str | None) -> tuple[Client, LocalCluster | None]:
     try:
         from distributed import Client, LocalCluster
     except ImportError:
@@ -272,7 +277,7 @@ def run_tasks(
     *,
     keys: Sequence[str] | None = None,
     scheduler: str | None = "serial",
-    client: Any = None,
+    client: Client | None = None,
     shared: Mapping[str, Any] | None = None,
     store: str | os.PathLike[str] | TaskStore | None = None,
     store_tag: str = "",
@@ -414,7 +419,7 @@ def _run_processes(
 
 
 def _run_dask(
-    client: Any,
+    client: Client,
     fn: Callable[..., Any],
     tasks: list[Any],
     keys: list[str],

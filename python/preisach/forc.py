@@ -67,8 +67,8 @@ class ForcMeasurement:
 
     def drift(self) -> np.ndarray:
         """Relative change of the calibration moment from the first curve (1, per curve)."""
-        m = self.calibration[:, 1]
-        return m / m[0] - 1.0
+        m = np.asarray(self.calibration[:, 1], dtype=np.float64)
+        return m / float(m[0]) - 1.0
 
     def drift_corrected(self) -> ForcMeasurement:
         """Return the measurement with each curve's moment scaled by its calibration point.

@@ -187,7 +187,7 @@ def _verify(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(subparsers: Any) -> None:
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Register ``identify`` and ``verify`` on the ``preisach`` command's subparsers."""
     p = subparsers.add_parser(
         "identify",

@@ -181,28 +181,10 @@ class ForcDiagram:
         return np.asarray(0.5 * (self.h[None, :] + self.h_r[:, None]))
 
     def plot(self, *, ax: Axes | None = None, levels: int = 21) -> Figure:
-        """Draw rho in (H_c, H_u) with filled contours (undefined points left blank)."""
-        import matplotlib.pyplot as plt
+        """Draw rho in (H_c, H_u) with filled contours (:func:`.plots.plot_forc_diagram`)."""
+        from .plots import plot_forc_diagram
 
-        if ax is None:
-            fig, ax = plt.subplots(figsize=(6.4, 4.8))
-        else:
-            fig = ax.get_figure()  # type: ignore[assignment]
-        rho = np.ma.masked_invalid(self.rho)
-        hc, hu = self.h_c, self.h_u
-        vmax = float(np.nanmax(np.abs(self.rho))) if np.isfinite(self.rho).any() else 1.0
-        cs = ax.contourf(hc, hu, rho, levels=np.linspace(-vmax, vmax, levels), cmap="RdBu_r")
-        ax.contour(
-            hc, hu, rho, levels=np.linspace(-vmax, vmax, levels)[::2], colors="k", linewidths=0.3
-        )
-        fig.colorbar(cs, ax=ax, label=f"rho ({self.moment_units} / {self.field_units}^2)")
-        ax.set_xlabel(f"H_c = (H - H_r) / 2 ({self.field_units})")
-        ax.set_ylabel(f"H_u = (H + H_r) / 2 ({self.field_units})")
-        ax.set_title(
-            f"FORC diagram, SF = {self.smoothing_factor} (no data, none drawn, where H < H_r)"
-        )
-        ax.set_xlim(0.0, None)
-        return fig  # type: ignore[return-value]
+        return plot_forc_diagram(self, ax=ax, levels=levels)
 
 
 def forc_grid(

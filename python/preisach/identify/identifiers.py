@@ -26,16 +26,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _core
+from ..initial_state import InitialState, check_policy
 from ..model import PreisachModel
 from ..recording import as_recordings, recording_labels
 from .delay import DelayEstimate, estimate_delay, shift_output
 from .fod_finder import FODData, find_fod_curves
-from .lsq import (
-    InitialState,
-    check_policy,
-    identify_lsq_core,
-    weights_matrix,
-)
+from .lsq import identify_lsq_core, weights_matrix
 from .report import DataUsage, IdentificationReport, ProjectionSummary, Residuals
 from .surface_fit import fit_sqrt_surface
 

@@ -19,18 +19,22 @@ y in volts (V), the density v in V/V^2, kappa in V/V, time in seconds (s).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .._figures import figure, figure_and_axes, figure_and_axes3d
+
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d import Axes3D
 
     from ..model import PreisachModel
     from ..verify import VerificationTable
     from .fod_finder import FODData
+    from .forc_identify import ForcDiagram
     from .identifiers import IdentificationReport
     from .lsq import LsqDetails
 
@@ -38,6 +42,7 @@ __all__ = [
     "plot_cv",
     "plot_fod_data",
     "plot_fod_surface",
+    "plot_forc_diagram",
     "plot_kappa",
     "plot_report",
     "plot_verification",
@@ -45,19 +50,6 @@ __all__ = [
 ]
 
 _COORDS = ("alpha-beta", "r-s")
-
-
-def _new_figure(**kwargs: Any) -> Figure:
-    from matplotlib.figure import Figure as _Figure
-
-    return _Figure(**kwargs)
-
-
-def _axes(ax: Axes | None, three_d: bool = False, **fig_kw: Any) -> tuple[Figure, Axes]:
-    if ax is not None:
-        return ax.figure, ax  # type: ignore[return-value]
-    fig = _new_figure(**fig_kw)
-    return fig, (fig.add_subplot(projection="3d") if three_d else fig.add_subplot())
 
 
 def _prefix(values: NDArray[np.float64]) -> tuple[float, str]:
@@ -109,7 +101,7 @@ def plot_fod_data(
     """
     if fod is None and model is None:
         raise ValueError("plot_fod_data: give fod data, a model, or both")
-    fig, ax = _axes(ax, figsize=(6.5, 4.8))
+    fig, ax = figure_and_axes(ax, figsize=(6.5, 4.8))
     alphas: NDArray[np.float64]
     if fod is not None:
         lv, yg = fod.levels, fod.y_grid
@@ -162,7 +154,7 @@ def plot_fod_surface(
     *,
     fod: FODData | None = None,
     coords: str = "alpha-beta",
-    ax: Axes | None = None,
+    ax: Axes3D | None = None,
     resolution: int = 41,
 ) -> Figure:
     """Draw the FOD surface y(alpha, beta) of a model as a 3-D surface, with measured points.
@@ -183,20 +175,20 @@ def plot_fod_surface(
 
     """
     _check_coords(coords)
-    fig, ax = _axes(ax, three_d=True, figsize=(6.5, 5.5))
+    fig, ax = figure_and_axes3d(ax, figsize=(6.5, 5.5))
     a, b = _triangle(model, resolution)
     y = _fod_y(model, a, b)
     x1, x2 = (a, b) if coords == "alpha-beta" else ((a - b) / 2, (a + b) / 2)
-    ax.plot_trisurf(x1, x2, y, cmap="viridis", linewidth=0.1, alpha=0.85)  # type: ignore[attr-defined]
+    ax.plot_trisurf(x1, x2, y, cmap="viridis", linewidth=0.1, alpha=0.85)
     if fod is not None:
         aa, bb, yy, _ = fod.nodes()
         p1, p2 = (aa, bb) if coords == "alpha-beta" else ((aa - bb) / 2, (aa + bb) / 2)
-        ax.scatter(p1, p2, yy, color="k", s=4, label="measured")  # type: ignore[misc]
+        ax.scatter(p1, p2, yy, color="k", s=4, label="measured")
         ax.legend(loc="upper left", fontsize=8)
     names = ("alpha (V)", "beta (V)") if coords == "alpha-beta" else ("r (V)", "s (V)")
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
-    ax.set_zlabel("output y (V)")  # type: ignore[attr-defined]
+    ax.set_zlabel("output y (V)")
     ax.set_title(f"FOD surface in ({coords.replace('-', ', ')})")
     return fig
 
@@ -205,7 +197,7 @@ def plot_weights(
     model: PreisachModel,
     *,
     coords: str = "alpha-beta",
-    ax: Axes | None = None,
+    ax: Axes3D | None = None,
 ) -> Figure:
     """Draw the density v (V/V^2) of a model's weight as a 3-D surface over the cell centres.
 
@@ -222,7 +214,7 @@ def plot_weights(
     from .identifiers import weight_density
 
     _check_coords(coords)
-    fig, ax = _axes(ax, three_d=True, figsize=(6.5, 5.5))
+    fig, ax = figure_and_axes3d(ax, figsize=(6.5, 5.5))
     v, _ = weight_density(model)
     lv = model.levels
     c = 0.5 * (lv[1:] + lv[:-1])
@@ -231,11 +223,11 @@ def plot_weights(
     factor, prefix = _prefix(z)
     x1, x2 = (a, b) if coords == "alpha-beta" else ((a - b) / 2, (a + b) / 2)
     if z.size >= 3:
-        ax.plot_trisurf(x1, x2, z * factor, cmap="magma", linewidth=0.1)  # type: ignore[attr-defined]
+        ax.plot_trisurf(x1, x2, z * factor, cmap="magma", linewidth=0.1)
     names = ("alpha (V)", "beta (V)") if coords == "alpha-beta" else ("r (V)", "s (V)")
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
-    ax.set_zlabel(f"density v ({prefix}V/V^2)")  # type: ignore[attr-defined]
+    ax.set_zlabel(f"density v ({prefix}V/V^2)")
     ax.set_title(f"weight density v in ({coords.replace('-', ', ')})")
     return fig
 
@@ -244,7 +236,7 @@ def plot_kappa(model: PreisachModel, *, ax: Axes | None = None) -> Figure:
     """Kappa (V/V) of the diagonal half-cells against their centre beta = alpha (V), Eq 2.14."""
     from .identifiers import weight_density
 
-    fig, ax = _axes(ax, figsize=(6, 4))
+    fig, ax = figure_and_axes(ax, figsize=(6, 4))
     _, kappa = weight_density(model)
     lv = model.levels
     c = 0.5 * (lv[1:] + lv[:-1])
@@ -259,7 +251,7 @@ def plot_kappa(model: PreisachModel, *, ax: Axes | None = None) -> Figure:
 
 def plot_cv(details: LsqDetails, *, ax: Axes | None = None) -> Figure:
     """Cross-validated RMS error (V) against the smoothness weight lambda (log axis)."""
-    fig, ax = _axes(ax, figsize=(6, 4))
+    fig, ax = figure_and_axes(ax, figsize=(6, 4))
     lam = np.asarray(details.lambdas, dtype=float)
     x = np.where(lam > 0, lam, np.nan)
     ax.plot(x, details.cv_rms, marker="o", color="tab:purple", label="CV rms (all folds)")
@@ -290,7 +282,7 @@ def plot_report(report: IdentificationReport, *, fig: Figure | None = None) -> F
     FOD data and the model's FOD curves (or the CV curve for lsq), the FOD surface in
     (alpha, beta) and (r, s), the density v in (alpha, beta) and (r, s), and kappa.
     """
-    fig = fig if fig is not None else _new_figure(figsize=(17, 10))
+    fig = figure(fig, figsize=(17, 10))
     m = report.model
     ax0 = fig.add_subplot(2, 3, 1)
     if report.lsq is not None:
@@ -326,11 +318,13 @@ def _relabel_units(fig: Figure, ui: str, uo: str) -> None:
     """Label every axis of a figure in the recording's units (the panels are drawn in V)."""
     if ui == "V" and uo == "V":
         return
+    from mpl_toolkits.mplot3d import Axes3D
+
     for ax in fig.axes:
         ax.set_xlabel(_unit_label(ax.get_xlabel(), ui, uo))
         ax.set_ylabel(_unit_label(ax.get_ylabel(), ui, uo))
-        if hasattr(ax, "get_zlabel"):
-            ax.set_zlabel(_unit_label(ax.get_zlabel(), ui, uo))  # type: ignore[attr-defined]
+        if isinstance(ax, Axes3D):
+            ax.set_zlabel(_unit_label(ax.get_zlabel(), ui, uo))
 
 
 def plot_verification(table: VerificationTable, *, fig: Figure | None = None) -> Figure:
@@ -338,7 +332,7 @@ def plot_verification(table: VerificationTable, *, fig: Figure | None = None) ->
     n = len(table.predictions)
     if n == 0:
         raise ValueError("plot_verification: the table has no predictions to draw")
-    fig = fig if fig is not None else _new_figure(figsize=(10, 3.2 * n))
+    fig = figure(fig, figsize=(10, 3.2 * n))
     axes = fig.subplots(n, 2, squeeze=False)
     for k, (row, p) in enumerate(zip(table.rows, table.predictions)):
         a1, a2 = axes[k]
@@ -360,4 +354,41 @@ def plot_verification(table: VerificationTable, *, fig: Figure | None = None) ->
         for a in (a1, a2):
             a.grid(alpha=0.3)
     fig.tight_layout()
+    return fig
+
+
+def plot_forc_diagram(diagram: ForcDiagram, *, ax: Axes | None = None, levels: int = 21) -> Figure:
+    """Draw a FORC diagram: rho in (H_c, H_u) with filled contours (undefined points blank).
+
+    Parameters
+    ----------
+    diagram : ForcDiagram
+        The diagram (:func:`~preisach.identify.forc_diagram`), in its own field and moment units.
+    ax : Axes, optional
+        Draw here instead of on a new figure.
+    levels : int
+        Number of contour levels, symmetric about zero.
+
+    Returns
+    -------
+    Figure
+
+    """
+    fig, ax = figure_and_axes(ax, figsize=(6.4, 4.8))
+    rho = np.ma.masked_invalid(diagram.rho)
+    hc, hu = diagram.h_c, diagram.h_u
+    finite = np.isfinite(diagram.rho)
+    vmax = float(np.nanmax(np.abs(diagram.rho))) if finite.any() else 1.0
+    cs = ax.contourf(hc, hu, rho, levels=np.linspace(-vmax, vmax, levels), cmap="RdBu_r")
+    ax.contour(
+        hc, hu, rho, levels=np.linspace(-vmax, vmax, levels)[::2], colors="k", linewidths=0.3
+    )
+    fu, mu = diagram.field_units, diagram.moment_units
+    fig.colorbar(cs, ax=ax, label=f"rho ({mu} / {fu}^2)")
+    ax.set_xlabel(f"H_c = (H - H_r) / 2 ({fu})")
+    ax.set_ylabel(f"H_u = (H + H_r) / 2 ({fu})")
+    ax.set_title(
+        f"FORC diagram, SF = {diagram.smoothing_factor} (no data, none drawn, where H < H_r)"
+    )
+    ax.set_xlim(0.0, None)
     return fig

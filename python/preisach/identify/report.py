@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -239,12 +239,21 @@ class IdentificationReport:
     delay_estimate: DelayEstimate | None = field(default=None, repr=False)
     choice: str = ""
 
+    # Unpacking is what the identifiers returned before the report was the result: typed
+    # Any on purpose, so ``model, report = identify_lsq(rec)`` still type-checks; new code
+    # uses ``report.model``, and indexing is typed exactly.
     def __iter__(self) -> Iterator[Any]:
         """Unpack as ``(model, report)`` (the identifiers' former return value)."""
         yield self.model
         yield self
 
-    def __getitem__(self, index: int) -> Any:
+    @overload
+    def __getitem__(self, index: Literal[0, -2]) -> PreisachModel: ...
+    @overload
+    def __getitem__(self, index: Literal[1, -1]) -> IdentificationReport: ...
+    @overload
+    def __getitem__(self, index: int) -> PreisachModel | IdentificationReport: ...
+    def __getitem__(self, index: int) -> PreisachModel | IdentificationReport:
         """``report[0]`` is the model, ``report[1]`` the report (tuple compatibility)."""
         return (self.model, self)[index]
 

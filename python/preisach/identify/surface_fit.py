@@ -361,7 +361,7 @@ def _eq32(
     if den == 0.0 or not math.isfinite(den):
         return np.full(alpha.shape, np.nan)
     num = f2 * (np.sqrt(np.maximum(beta - f3, 0.0)) - np.sqrt(np.maximum(u_min - f3, 0.0)))
-    return (y_max - y_min) * num / den + y_min
+    return np.asarray((y_max - y_min) * num / den + y_min, dtype=np.float64)
 
 
 def _f3_max(x7: float, x8: float, x9: float, u_min: float, u_max: float) -> float:

@@ -13,6 +13,7 @@ Preisach model (chapter 2)
     (alpha, beta) or (r, s)).
 Identification (chapter 3, from :mod:`preisach.identify.plots`)
     :func:`plot_fod_data` (Figs 3.18-3.20), :func:`plot_fod_surface` (Figs 3.30-3.35),
+    :func:`plot_forc_diagram` (a magnetometer FORC diagram),
     :func:`plot_weights` (the density of mu, Figs 3.36-3.44), :func:`plot_kappa` (Figs 3.37,
     3.39, 3.41), :func:`plot_cv`, :func:`plot_identification` (six panels of an
     identification report) and :func:`plot_verification` (Figs 3.48, 3.52, 3.56).
@@ -42,6 +43,7 @@ from ..identify.plots import (
     plot_cv,
     plot_fod_data,
     plot_fod_surface,
+    plot_forc_diagram,
     plot_kappa,
     plot_verification,
     plot_weights,
@@ -87,6 +89,7 @@ __all__ = [
     "plot_everett_across_rates",
     "plot_fod_data",
     "plot_fod_surface",
+    "plot_forc_diagram",
     "plot_identification",
     "plot_initial_states",
     "plot_kappa",

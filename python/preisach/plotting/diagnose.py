@@ -6,8 +6,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._figures import figure as _figure
 from ..recording import RecordingsInput, as_recordings
-from ._common import figure as _figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

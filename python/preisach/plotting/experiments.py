@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._common import figure as _figure
+from .._figures import figure as _figure
+from .._figures import figure_and_axes as _figure_and_axes
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -76,11 +77,7 @@ def plot_locus(
     matplotlib.figure.Figure
 
     """
-    if ax is None:
-        fig = _figure(None, figsize=(6.0, 4.5))
-        ax = fig.add_subplot()
-    else:
-        fig = ax.figure  # type: ignore[assignment]
+    fig, ax = _figure_and_axes(ax, figsize=(6.0, 4.5))
     if model is not None:
         up = np.linspace(model.u_min, model.u_max, 801)
         y_up = model.simulate(up, model.negative_saturation()).output
@@ -96,7 +93,7 @@ def plot_locus(
         ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", fontsize="small")
-    return fig  # type: ignore[return-value]
+    return fig
 
 
 def plot_neutral_locus(
@@ -397,11 +394,7 @@ def plot_effort_increase(
 
     """
     rows = _sweep_of(result, "closed-loop", "plot_effort_increase").percentage_table()
-    if ax is None:
-        fig = _figure(None, figsize=(6.0, 4.2))
-        ax = fig.add_subplot()
-    else:
-        fig = ax.figure  # type: ignore[assignment]
+    fig, ax = _figure_and_axes(ax, figsize=(6.0, 4.2))
     x = np.array([r["normalised_gain"] for r in rows])
     for j, f in enumerate(result.frequencies):
         for kind, style, marker in (("a", "-", "^"), ("d", "--", "v")):
@@ -413,4 +406,4 @@ def plot_effort_increase(
     ax.set_title(title or "extra control effort from psi_a and psi_d (Table 5.1)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small", ncol=2)
-    return fig  # type: ignore[return-value]
+    return fig

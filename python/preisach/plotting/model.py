@@ -10,11 +10,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._common import figure as _figure
+from .._figures import figure as _figure
+from .._figures import figure_and_axes as _figure_and_axes
+from .._figures import figure_and_axes3d as _figure_and_axes3d
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+    from mpl_toolkits.mplot3d import Axes3D
 
     from ..model import PreisachModel, SimulationResult, State
 
@@ -71,11 +74,7 @@ def plot_major_loop(
         loop.
 
     """
-    if ax is None:
-        fig = _figure(None, figsize=(6, 4.5))
-        ax = fig.add_subplot()
-    else:
-        fig = ax.figure  # type: ignore[assignment]
+    fig, ax = _figure_and_axes(ax, figsize=(6, 4.5))
     alphas = np.linspace(model.u_min, model.u_max, n_fod + 1)[1:]
     u, falls = fod_sweep_input(model.u_min, model.u_max, alphas.tolist())
     res = model.simulate(u, model.negative_saturation())
@@ -90,7 +89,7 @@ def plot_major_loop(
     ax.set_title(title or (model.name or "Preisach model"))
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left")
-    return fig  # type: ignore[return-value]
+    return fig
 
 
 def plot_simulation(result: SimulationResult, *, fig: Figure | None = None) -> Figure:
@@ -147,11 +146,7 @@ def plot_boundary(state: State, *, ax: Axes | None = None, coords: str = "alpha-
     Figure
 
     """
-    if ax is None:
-        fig = _figure(None, figsize=(5, 5))
-        ax = fig.add_subplot()
-    else:
-        fig = ax.figure  # type: ignore[assignment]
+    fig, ax = _figure_and_axes(ax, figsize=(5, 5))
     lo, hi = state.u_min, state.u_max
     poly = boundary_polyline(state)
     # P+ = {(alpha, beta): beta <= alpha <= phi(beta)}: below the boundary, above the diagonal.
@@ -180,14 +175,14 @@ def plot_boundary(state: State, *, ax: Axes | None = None, coords: str = "alpha-
         ax.set_ylabel("beta (V)")
     ax.set_aspect("equal")
     ax.legend(loc="upper left", fontsize=8)
-    return fig  # type: ignore[return-value]
+    return fig
 
 
 def plot_everett(
     model: PreisachModel,
     *,
     coords: str = "alpha-beta",
-    ax: Axes | None = None,
+    ax: Axes3D | None = None,
     resolution: int = 41,
 ) -> Figure:
     """Draw the Everett function E(alpha, beta) (V) of a model as a surface over the triangle.
@@ -218,21 +213,17 @@ def plot_everett(
     n = int(resolution)
     if n < 3:
         raise ValueError(f"resolution: need at least 3 points per side, got {resolution!r}")
-    if ax is None:
-        fig = _figure(None, figsize=(6.5, 5.5))
-        ax = fig.add_subplot(projection="3d")
-    else:
-        fig = ax.figure  # type: ignore[assignment]
+    fig, ax = _figure_and_axes3d(ax, figsize=(6.5, 5.5))
     g = np.linspace(model.u_min, model.u_max, n)
     a, b = np.meshgrid(g, g, indexing="ij")
     keep = a >= b
     a, b = a[keep], b[keep]
     e = np.asarray(model.everett(a, b), dtype=float)
     x1, x2 = (a, b) if coords == "alpha-beta" else ((a - b) / 2, (a + b) / 2)
-    ax.plot_trisurf(x1, x2, e, cmap="viridis", linewidth=0.1)  # type: ignore[attr-defined,union-attr]
+    ax.plot_trisurf(x1, x2, e, cmap="viridis", linewidth=0.1)
     names = ("alpha (V)", "beta (V)") if coords == "alpha-beta" else ("r (V)", "s (V)")
     ax.set_xlabel(names[0])
     ax.set_ylabel(names[1])
-    ax.set_zlabel("Everett function E (V)")  # type: ignore[attr-defined,union-attr]
+    ax.set_zlabel("Everett function E (V)")
     ax.set_title(f"Everett function in ({coords.replace('-', ', ')})")
-    return fig  # type: ignore[return-value]
+    return fig

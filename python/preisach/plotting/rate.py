@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ._common import figure as _figure
+from .._figures import figure as _figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -99,7 +99,7 @@ def plot_rate_loops(
     ax.set_title(f"{model.name or 'rate-dependent model'}: major loops across rates")
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
-    return fig  # type: ignore[return-value]
+    return fig
 
 
 def plot_everett_across_rates(
@@ -135,7 +135,7 @@ def plot_everett_across_rates(
     for ax in (ax1, ax2):
         ax.grid(alpha=0.3)
     fig.suptitle(f"{model.name or 'rate-dependent model'}: Everett function across rates")
-    return fig  # type: ignore[return-value]
+    return fig
 
 
 def plot_loop_width(
@@ -196,7 +196,7 @@ def plot_loop_width(
     ax.set_title("loop width against rate (dotted: the model's knots)")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
-    return fig  # type: ignore[return-value]
+    return fig
 
 
 def _cmap(n: int) -> list[Any]:

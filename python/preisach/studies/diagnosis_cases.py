@@ -205,7 +205,7 @@ def _fast_model(model: PreisachModel) -> PreisachModel:
 def _lowpass(x: Array, tau: float, dt: float) -> Array:
     e = math.exp(-dt / tau)
     y, _ = signal.lfilter([1 - e], [1, -e], x, zi=[e * x[0]])
-    return y
+    return np.asarray(y, dtype=np.float64)
 
 
 def _mode_foh(x: Array, fn: float, zeta: float, dt: float) -> Array:
@@ -215,7 +215,7 @@ def _mode_foh(x: Array, fn: float, zeta: float, dt: float) -> Array:
     t = np.arange(x.size) * dt
     # start at rest at x[0]: simulate the deviation from x[0]
     _, y, _ = signal.lsim(sys, x - x[0], t, interp=True)
-    return np.asarray(y) + x[0]
+    return np.asarray(y, dtype=np.float64) + float(x[0])
 
 
 def _lag_foh(x: Array, tau: float, dt: float) -> Array:
@@ -225,13 +225,13 @@ def _lag_foh(x: Array, tau: float, dt: float) -> Array:
     q = tau / dt * (1 - e)
     b0, b1 = 1 - q, q - e
     y, _ = signal.lfilter([b0, b1], [1.0, -e], x, zi=[(1 - b0) * x[0]])
-    return y
+    return np.asarray(y, dtype=np.float64)
 
 
 def _log_creep(y: Array, t0: float, dt: float) -> Array:
     dy = np.diff(y, prepend=y[0])
     kern = np.log10(1 + np.arange(y.size) * dt / t0)
-    return signal.fftconvolve(dy, kern)[: y.size]
+    return np.asarray(signal.fftconvolve(dy, kern)[: y.size], dtype=np.float64)
 
 
 def _moving(
@@ -286,7 +286,7 @@ class _Truth:
         if self.kind == "sensor_drift":
             rng = np.random.default_rng(self.rng_seed + 7919 * index)
             t = np.arange(u.size) * dt
-            d = rng.uniform(-1, 1) * t / max(t[-1], dt)
+            d = rng.uniform(-1, 1) * t / max(float(t[-1]), dt)
             for _ in range(3):
                 per = rng.uniform(8.0, 60.0)
                 d = d + rng.uniform(0.3, 1.0) * np.sin(
@@ -347,8 +347,7 @@ class Case:
         """
         from ..identify import identify_fod
 
-        model, _ = identify_fod(self.identification, levels, name="identified from FOD sweep")
-        return model
+        return identify_fod(self.identification, levels, name="identified from FOD sweep").model
 
     def save(self, folder: PathLike) -> None:
         """Write ``identification.npz``, one ``<name>.npz`` per experiment and ``truth.json``."""
@@ -379,7 +378,7 @@ def _quantise(
 ) -> Array:
     lsb = (rng_v[1] - rng_v[0]) / 2**bits
     yn = y + rng.normal(0.0, sigma, y.size)
-    return np.clip(np.round(yn / lsb) * lsb, rng_v[0], rng_v[1] - lsb)
+    return np.asarray(np.clip(np.round(yn / lsb) * lsb, rng_v[0], rng_v[1] - lsb), dtype=np.float64)
 
 
 def make_case(
@@ -617,7 +616,9 @@ def _triangle(f: float, periods: int, model: PreisachModel, dt: float) -> Array:
     """Major-loop triangle wave from ``u_min`` at ``f`` Hz (V)."""
     t = np.arange(int(round(periods / f / dt)) + 1) * dt
     ph = (f * t) % 1.0
-    return model.u_min + (model.u_max - model.u_min) * (1 - np.abs(2 * ph - 1))
+    return np.asarray(
+        model.u_min + (model.u_max - model.u_min) * (1 - np.abs(2 * ph - 1)), dtype=np.float64
+    )
 
 
 def _mid_width(u: Array, y: Array, n_last: int) -> float:

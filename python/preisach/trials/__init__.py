@@ -113,6 +113,7 @@ device, the safety ramp, ``summary.json``) and :mod:`.cli` (``preisach trial``).
 
 from __future__ import annotations
 
+from ..daq.calibration import SS15_INPUT_GAIN
 from .cli import _main as _main  # python -m preisach.trials
 from .cli import _ProgressBar as _ProgressBar
 from .cli import add_parser
@@ -120,7 +121,6 @@ from .plan import check_trial, step_waveform
 from .run import StepOutcome, TrialOutcome, run_trial_file
 from .schema import (
     AMPLIFIER_LIMIT,
-    SS15_INPUT_GAIN,
     STEP_KINDS,
     PlannedStep,
     TrialPlan,

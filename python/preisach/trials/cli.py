@@ -134,7 +134,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse.ArgumentParser:
     """Register ``preisach trial run|check`` on an argparse subparsers object."""
     p = subparsers.add_parser(
         "trial",
