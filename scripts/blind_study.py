@@ -20,6 +20,7 @@ apart: not right, but not a wrong name either.  Printed: the confusion matrix pe
 per kind, false alarms on nulls, the held-out gain when right.
 
     python scripts/blind/blind_generator.py OUTDIR ...     (see scripts/blind/README.md)
+    python scripts/blind2/generator.py OUTDIR ...          (a second one: scripts/blind2/README.md)
     python scripts/blind_study.py OUTDIR [--passes default,bare] [--workers 2] [--work DIR]
 """
 
@@ -45,6 +46,21 @@ KINDS = (
     "non_congruence",
 )
 VERDICTS = (*KINDS, "gain_offset", "sensor_nonlinearity", "unexplained")
+# Other generators' words for the same kinds (scripts/blind2 was written apart, in its own words).
+KIND_ALIASES = {
+    "rate": "rate_dependence",
+    "resonance": "structural_resonance",
+    "drift": "sensor_drift",
+    "noncongruence": "non_congruence",
+}
+
+
+def truth_kinds(path: Path) -> list[str]:
+    """The kinds a truth file names, in diagnosis's vocabulary."""
+    kinds = json.loads(path.read_text())["kinds"]
+    return [KIND_ALIASES.get(k, k) for k in kinds]
+
+
 PASS_ARGS = {
     "default": [],
     "sweep": ["--identification", "{id}"],
@@ -117,7 +133,7 @@ def collect(outdir: Path, work: Path, passes: list[str]) -> list[dict[str, Any]]
             continue
         r: dict[str, Any] = {
             "case": d.name,
-            "kinds": json.loads(truth.read_text())["kinds"],
+            "kinds": truth_kinds(truth),
             "passes": {},
         }
         for name in passes:
@@ -235,10 +251,10 @@ def main() -> int:
     t0 = time.perf_counter()
 
     def one(case: Path) -> dict[str, Any]:
-        truth = json.loads((truth_dir / f"{case.name}.json").read_text())
-        r = run_case(case, truth, args.work / case.name, passes)
+        kinds = truth_kinds(truth_dir / f"{case.name}.json")
+        r = run_case(case, {"kinds": kinds}, args.work / case.name, passes)
         summary = {n: p.get("verdict", p.get("error")) for n, p in r["passes"].items()}
-        print(f"{case.name} {truth['kinds']}: {summary} ({r.get('seconds', 0):.0f} s)", flush=True)
+        print(f"{case.name} {kinds}: {summary} ({r.get('seconds', 0):.0f} s)", flush=True)
         return r
 
     with ThreadPoolExecutor(max(1, args.workers)) as ex:
