@@ -23,9 +23,36 @@ from __future__ import annotations
 import sys
 import warnings
 from collections.abc import Callable
-from typing import Any
+from types import TracebackType
+from typing import IO, Any, Protocol
 
-__all__ = ["line_progress", "progress_bar"]
+__all__ = ["ProgressBar", "line_progress", "progress_bar"]
+
+
+class ProgressBar(Protocol):
+    """What the package uses of a ``tqdm`` bar (``tqdm`` itself carries no types)."""
+
+    n: float
+    total: float | None
+
+    def update(self, n: float = 1) -> bool | None: ...  # noqa: D102
+
+    def set_postfix_str(self, s: str = "", refresh: bool = True) -> None: ...  # noqa: D102
+
+    def set_description_str(self, desc: str | None = None, refresh: bool = True) -> None: ...  # noqa: D102
+
+    def write(self, s: str, file: IO[str] | None = None) -> None: ...  # noqa: D102
+
+    def close(self) -> None: ...  # noqa: D102
+
+    def __enter__(self) -> ProgressBar: ...  # noqa: D105
+
+    def __exit__(  # noqa: D105
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None: ...
 
 
 def _isatty(stream: Any) -> bool:
@@ -71,7 +98,7 @@ def progress_bar(
     file: Any = None,
     log_interval: float = 10.0,
     delay: float = 2.0,
-) -> Any:
+) -> ProgressBar:
     """Return a ``tqdm`` progress bar (``update``, ``set_postfix_str``, ``close``, context).
 
     Parameters
@@ -111,22 +138,25 @@ def progress_bar(
     if not enabled:
         from tqdm.std import tqdm
 
-        return tqdm(disable=True, **options)
+        bar: ProgressBar = tqdm(disable=True, **options)
+        return bar
     if _in_jupyter() or _isatty(stream):
         from tqdm import TqdmWarning
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", TqdmWarning)  # "ipywidgets not found", "experimental"
             from tqdm.auto import tqdm as auto_tqdm
-        return auto_tqdm(file=stream, dynamic_ncols=True, **options)
+        bar = auto_tqdm(file=stream, dynamic_ncols=True, **options)
+        return bar
     from tqdm.std import tqdm
 
-    return tqdm(file=_Lines(stream), mininterval=log_interval, ascii=True, ncols=100, **options)
+    bar = tqdm(file=_Lines(stream), mininterval=log_interval, ascii=True, ncols=100, **options)
+    return bar
 
 
 def line_progress(
     progress: bool | Callable[[str], None] | None, desc: str, *, unit: str = "step"
-) -> tuple[Callable[[str], None] | None, Any]:
+) -> tuple[Callable[[str], None] | None, ProgressBar]:
     """Turn a ``progress`` argument into a line callback and the bar that shows it.
 
     Functions that report progress as text lines (``diagnose``: one line per stage and per

@@ -18,7 +18,6 @@ is estimated first (unless given) and applied to whichever method runs.
 from __future__ import annotations
 
 import time
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -26,15 +25,13 @@ from numpy.typing import ArrayLike
 from .. import _core
 from ..initial_state import InitialState, check_policy
 from ..model import PreisachModel
-from ..recording import Recording
+from ..recording import Recording, RecordingsInput, SampledData
 from .fod_finder import FODData, find_fod_curves
 from .identifiers import (
     MAX_FOD_LEVELS,
     Delay,
-    _check_lengths,
+    _delay_recordings,
     _recordings,
-    _resolve_delay,
-    _unique_names,
     identify_fod,
     identify_lsq,
     identify_surface,
@@ -49,7 +46,7 @@ FOD_COVERAGE = 0.9
 METHODS = ("auto", "fod", "surface", "lsq")
 
 
-def mirror_recording(rec: Any) -> Recording:
+def mirror_recording(rec: SampledData) -> Recording:
     """Return the recording with input and output negated (FORC <-> FOD curves)."""
     meta = dict(getattr(rec, "metadata", None) or {})
     meta["mirrored"] = 1
@@ -83,7 +80,9 @@ def _coverage(fd: FODData) -> tuple[int, int]:
     return int(np.count_nonzero(np.tril(fd.count))), n * (n + 1) // 2
 
 
-def _find(recs: list[Any], levels: Any, mirrored: bool) -> tuple[FODData | None, str]:
+def _find(
+    recs: list[Recording], levels: ArrayLike | None, mirrored: bool
+) -> tuple[FODData | None, str]:
     """FOD curves of the recordings (mirrored: their FORCs), or None and why not."""
     parts = []
     lo = min(float(np.min(r.u)) for r in recs)
@@ -102,7 +101,7 @@ def _find(recs: list[Any], levels: Any, mirrored: bool) -> tuple[FODData | None,
 
 
 def identify(
-    recordings: Any,
+    recordings: RecordingsInput,
     method: str = "auto",
     levels: ArrayLike | int | None = None,
     *,
@@ -119,8 +118,9 @@ def identify(
 
     Parameters
     ----------
-    recordings : Recording or sequence of Recording
-        Any recordings of one actuator (or one magnetometer sample).
+    recordings : Recording, path, object with t/u/y, or a sequence of them
+        Any recordings of one actuator (or one magnetometer sample), as
+        :func:`~preisach.recording.as_recordings` accepts them.
     method : {"auto", "fod", "surface", "lsq"}
         ``"auto"`` (default) chooses as the module docstring says; the others force a method.
     levels : int or array_like, optional
@@ -153,15 +153,13 @@ def identify(
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     check_policy(initial_state)
-    recs = _recordings(recordings)
-    _check_lengths(recs, _unique_names(recs))
-    recs, d, estimate, _ = _resolve_delay(recs, delay, initial_state)
+    recs, d, estimate, _ = _delay_recordings(_recordings(recordings), delay, initial_state)
     choice = ""
     mirrored = False
     chosen = method
     if method == "auto":
-        lv_arg: Any = levels
-        if lv_arg is not None and np.ndim(lv_arg) == 0 and int(lv_arg) > MAX_FOD_LEVELS:
+        lv_arg: ArrayLike | None = levels
+        if lv_arg is not None and np.ndim(lv_arg) == 0 and int(np.asarray(lv_arg)) > MAX_FOD_LEVELS:
             lv_arg = None  # too fine for an FOD grid: found on the default grid
         fod, why = _find(recs, lv_arg, False)
         forc, why_r = _find([mirror_recording(r) for r in recs], lv_arg, True)

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..initial_state import InitialState
-from ..recording import Recording
+from ..recording import Recording, SampledData
 
 __all__ = ["DelayEstimate", "estimate_delay", "shift_output"]
 
@@ -88,7 +88,7 @@ class DelayEstimate:
         }
 
 
-def shift_output(rec: Any, delay: float) -> Recording:
+def shift_output(rec: SampledData, delay: float) -> Recording:
     """Return the recording whose samples pair the output ``y(k + delay)`` with the input ``u(k)``.
 
     For ``delay = k0 + f`` (``k0`` an integer, ``0 < f < 1``) sample ``j`` pairs
@@ -133,7 +133,7 @@ def shift_output(rec: Any, delay: float) -> Recording:
 
 
 def estimate_delay(
-    recordings: Sequence[Any],
+    recordings: Sequence[SampledData],
     *,
     max_delay: int | None = None,
     folds: int = 5,
@@ -174,7 +174,7 @@ def estimate_delay(
     levels = np.linspace(lo, hi, ESTIMATE_LEVELS)
     notes: list[str] = []
 
-    def score(recs_d: Sequence[Any], d: int) -> float:
+    def score(recs_d: Sequence[SampledData], d: int) -> float:
         _, _, details, _, _ = identify_lsq_core(
             recs_d,
             levels,

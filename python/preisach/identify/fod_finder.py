@@ -100,10 +100,11 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from ..recording import SampledData
 
 __all__ = ["CurveRecord", "FODData", "find_fod_curves", "find_forc_curves"]
 
@@ -342,7 +343,7 @@ class FODData:
 # public functions
 # ------------------------------------------------------------------------------------------
 def find_fod_curves(
-    t: Any,
+    t: ArrayLike | SampledData,
     u: ArrayLike | None = None,
     y: ArrayLike | None = None,
     levels: ArrayLike | None = None,
@@ -398,7 +399,7 @@ def find_fod_curves(
 
 
 def find_forc_curves(
-    t: Any,
+    t: ArrayLike | SampledData,
     u: ArrayLike | None = None,
     y: ArrayLike | None = None,
     levels: ArrayLike | None = None,
@@ -483,7 +484,7 @@ class _Frame:
         return _fmt(self.sign * float(s), self.unit)
 
 
-def _as_1d(name: str, a: Any) -> NDArray[np.float64]:
+def _as_1d(name: str, a: ArrayLike) -> NDArray[np.float64]:
     try:
         arr = np.asarray(a, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -494,18 +495,19 @@ def _as_1d(name: str, a: Any) -> NDArray[np.float64]:
 
 
 def _validate(
-    t: Any, u: Any, y: Any
+    t: ArrayLike | SampledData, u: ArrayLike | None, y: ArrayLike | None
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    if all(hasattr(t, name) for name in ("t", "u", "y")) and not isinstance(t, np.ndarray):
+    if isinstance(t, SampledData):  # a recording (an ndarray has no attributes t, u, y)
         if u is not None or y is not None:
             raise TypeError(
                 "u and y must not be given when the first argument is a recording with "
                 "attributes t, u, y (pass levels by keyword)"
             )
-        t, u, y = t.t, t.u, t.y
+        ta, ua, ya = _as_1d("t", t.t), _as_1d("u", t.u), _as_1d("y", t.y)
     elif u is None or y is None:
         raise TypeError("give t, u and y arrays, or a recording with attributes t, u, y")
-    ta, ua, ya = _as_1d("t", t), _as_1d("u", u), _as_1d("y", y)
+    else:
+        ta, ua, ya = _as_1d("t", t), _as_1d("u", u), _as_1d("y", y)
     if not (ta.size == ua.size == ya.size):
         raise ValueError(
             f"t, u and y must have the same length, got t: {ta.size}, u: {ua.size}, y: {ya.size}"
@@ -811,9 +813,9 @@ def _read_branch(
 
 
 def _find(
-    t: Any,
-    u: Any,
-    y: Any,
+    t: ArrayLike | SampledData,
+    u: ArrayLike | None,
+    y: ArrayLike | None,
     levels: ArrayLike | None,
     sign: float,
     u_min: float | None,

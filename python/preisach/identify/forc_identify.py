@@ -24,10 +24,10 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Union
+from typing import TYPE_CHECKING, Union
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..forc import ForcMeasurement, read_forc
 from .report import IdentificationReport
@@ -35,6 +35,8 @@ from .report import IdentificationReport
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+    from .identifiers import Delay
 
 __all__ = ["ForcDiagram", "forc_diagram", "forc_grid", "identify_forc"]
 
@@ -58,11 +60,11 @@ def identify_forc(
     source: Source,
     *,
     method: str = "auto",
-    levels: Any = None,
+    levels: ArrayLike | int | None = None,
     drift: bool = True,
     name: str = "",
     project: bool = False,
-    delay: Any = 0,
+    delay: Delay = 0,
     folds: int = 5,
     solver: str = "auto",
 ) -> IdentificationReport:

@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _core
 from ..initial_state import InitialState, check_policy
 from ..model import PreisachModel
-from ..recording import as_recordings, recording_labels
+from ..recording import Recording, RecordingsInput, as_recordings, recording_labels
 from .delay import DelayEstimate, estimate_delay, shift_output
 from .fod_finder import FODData, find_fod_curves
 from .lsq import identify_lsq_core, weights_matrix
@@ -47,23 +47,30 @@ __all__ = [
     "weight_density",
 ]
 
-Data = Union[FODData, Any, Sequence[Any]]
+#: What the FOD identifiers take: recordings (anything :func:`~preisach.recording.as_recordings`
+#: accepts) or FOD curves found already.
+Data = Union[FODData, RecordingsInput]
+#: An output delay in samples, or ``"auto"``/``None`` to estimate it.
+Delay = Union[int, float, str, None]
+#: Options passed on to :func:`~preisach.identify.find_fod_curves` (``u_min``, ``u_max``,
+#: ``saturation_tol``, ``reversal_tol``, ``level_tol``; V).
+FinderOption = Union[float, None]
 
 
 # ------------------------------------------------------------------------------------------
 # helpers
 # ------------------------------------------------------------------------------------------
-def _recordings(data: Any) -> list[Any]:
+def _recordings(data: RecordingsInput) -> list[Recording]:
     """Return the recordings given (paths, Recordings, t/u/y objects) by the package rule."""
-    return list(as_recordings(data))
+    return as_recordings(data)
 
 
-def _unique_names(recs: Sequence[Any]) -> list[str]:
+def _unique_names(recs: Sequence[Recording]) -> list[str]:
     """Return the recordings' labels by the package rule (repeated labels numbered)."""
     return recording_labels(recs)
 
 
-def _check_lengths(recs: Sequence[Any], names: Sequence[str]) -> None:
+def _check_lengths(recs: Sequence[Recording], names: Sequence[str]) -> None:
     """Raise ValueError naming the first recording with fewer than 2 samples."""
     for nm, r in zip(names, recs):
         n = int(np.size(r.u))
@@ -81,7 +88,7 @@ def _levels_arg(levels: ArrayLike | int | None, lo: float, hi: float) -> NDArray
     if levels is None:
         return None
     if np.ndim(levels) == 0:
-        n = int(levels)  # type: ignore[arg-type]
+        n = int(np.asarray(levels))
         if n < 2:
             raise ValueError(f"levels: need at least 2 levels, got {n}")
         return np.linspace(lo, hi, n)
@@ -130,8 +137,8 @@ def _merge_fod(parts: list[FODData]) -> FODData:
 
 
 def _fod_data(
-    data: Data, levels: ArrayLike | int | None, finder_options: dict[str, Any]
-) -> tuple[FODData, list[Any], list[str], list[DataUsage]]:
+    data: Data, levels: ArrayLike | int | None, finder_options: dict[str, FinderOption]
+) -> tuple[FODData, list[Recording], list[str], list[DataUsage]]:
     if isinstance(data, FODData):
         if levels is not None:
             raise ValueError(
@@ -226,7 +233,7 @@ def _node_residuals(model: PreisachModel, fd: FODData, output_range: float) -> R
 
 def _recording_residuals(
     model: PreisachModel,
-    recs: Sequence[Any],
+    recs: Sequence[Recording],
     names: Sequence[str],
     initial_state: InitialState,
     delay: int,
@@ -271,24 +278,32 @@ def _recording_residuals(
     return res, warn
 
 
-Delay = Union[int, float, str, None]
-
-
 def _resolve_delay(
-    data: Any, delay: Delay, initial_state: InitialState, integer_native: bool = False
-) -> tuple[Any, float, DelayEstimate | None, float]:
-    """Apply (or estimate, for ``None``/``"auto"``) the output delay; see :mod:`.delay`.
+    data: Data, delay: Delay, initial_state: InitialState
+) -> tuple[FODData | list[Recording], float, DelayEstimate | None]:
+    """Apply (or estimate, for ``None``/``"auto"``) the output delay to FOD identifiers' data.
 
-    Returns ``(data, delay, estimate, native)``: the recordings with the delay applied by
-    :func:`shift_output` (unchanged when it is 0, or when ``integer_native`` and it is an
-    integer - the caller then applies ``native`` itself), the delay (samples), how it was
-    estimated, and the delay left for the caller.
+    FOD data take no delay (their curves are found already); recordings go through
+    :func:`_delay_recordings`.  Returns ``(data, delay, estimate)``.
     """
     if isinstance(data, FODData):
         if delay not in (None, "auto", 0):
             raise ValueError("delay: not used with FODData (its curves are found already)")
-        return data, 0.0, None, 0.0
-    recs = _recordings(data)
+        return data, 0.0, None
+    recs, d, est, _ = _delay_recordings(_recordings(data), delay, initial_state)
+    return recs, d, est
+
+
+def _delay_recordings(
+    recs: list[Recording], delay: Delay, initial_state: InitialState, integer_native: bool = False
+) -> tuple[list[Recording], float, DelayEstimate | None, float]:
+    """Apply (or estimate, for ``None``/``"auto"``) the output delay; see :mod:`.delay`.
+
+    Returns ``(recordings, delay, estimate, native)``: the recordings with the delay applied by
+    :func:`shift_output` (unchanged when it is 0, or when ``integer_native`` and it is an
+    integer - the caller then applies ``native`` itself), the delay (samples), how it was
+    estimated, and the delay left for the caller.
+    """
     names = _unique_names(recs)
     _check_lengths(recs, names)
     est = None
@@ -308,7 +323,7 @@ def _resolve_delay(
     return [shift_output(r, d) for r in recs], d, est, 0.0
 
 
-def _units(recs: Sequence[Any]) -> dict[str, str]:
+def _units(recs: Sequence[Recording]) -> dict[str, str]:
     """``input_units`` and ``output_units`` of the recordings (``"V"`` when not stated)."""
     out = {}
     for key in ("input_units", "output_units"):
@@ -323,7 +338,7 @@ def _negative_cells(model: PreisachModel) -> int:
     return int(np.count_nonzero(w < -1e-12 * float(np.abs(w).sum())))
 
 
-def _output_range(fd: FODData, recs: Sequence[Any]) -> float:
+def _output_range(fd: FODData, recs: Sequence[Recording]) -> float:
     if recs:
         return max(float(np.ptp(r.y)) for r in recs)
     y = fd.y_grid[np.isfinite(fd.y_grid)]
@@ -405,7 +420,7 @@ def identify_fod(
     name: str = "",
     initial_state: InitialState = "burn-in",
     delay: Delay = 0,
-    **finder_options: Any,
+    **finder_options: FinderOption,
 ) -> IdentificationReport:
     """Mayergoyz identification: FOD curves -> Everett table (thesis §2.6, Eq 2.12-2.14).
 
@@ -451,7 +466,7 @@ def identify_fod(
     if gaps not in ("fill", "raise"):
         raise ValueError(f"gaps: expected 'fill' or 'raise', got {gaps!r}")
     check_policy(initial_state)
-    data, delay_used, estimate, _ = _resolve_delay(data, delay, initial_state)
+    data, delay_used, estimate = _resolve_delay(data, delay, initial_state)
     fd, recs, names, usage = _fod_data(data, levels, finder_options)
     table, filled, n_col0, n_ymin, rows = _core.mayergoyz(fd.levels, fd.y_grid, gaps)
     warnings = _fod_warnings(fd)
@@ -524,7 +539,7 @@ def identify_surface(
     name: str = "",
     initial_state: InitialState = "burn-in",
     delay: Delay = 0,
-    **finder_options: Any,
+    **finder_options: FinderOption,
 ) -> IdentificationReport:
     """Square-root FOD surface identification (thesis §3.3.2, Eq 3.1-3.2), tabulated.
 
@@ -566,7 +581,7 @@ def identify_surface(
     check_policy(initial_state)
     if y_min_source not in ("column_mean", "corner"):
         raise ValueError(f"y_min_source: expected 'column_mean' or 'corner', got {y_min_source!r}")
-    data, delay_used, estimate, _ = _resolve_delay(data, delay, initial_state)
+    data, delay_used, estimate = _resolve_delay(data, delay, initial_state)
     fd, recs, names, usage = _fod_data(data, levels, finder_options)
     fit = fit_sqrt_surface(
         fd.levels, fd.y_grid, frequency=frequency, refine=refine, y_min_source=y_min_source
@@ -604,7 +619,7 @@ def identify_surface(
 
 
 def identify_lsq(
-    recordings: Any,
+    recordings: RecordingsInput,
     levels: ArrayLike | int = 41,
     *,
     lambdas: str | Sequence[float] = "auto",
@@ -626,9 +641,9 @@ def identify_lsq(
 
     Parameters
     ----------
-    recordings : Recording or sequence of Recording
-        Any excitation (sines, noise, minor loops, FOD sweeps); objects with ``t``, ``u``,
-        ``y`` (s, V, V).
+    recordings : Recording, path, object with t/u/y, or a sequence of them
+        Any excitation (sines, noise, minor loops, FOD sweeps), as
+        :func:`~preisach.recording.as_recordings` accepts it (``t``, ``u``, ``y`` in s, V, V).
     levels : int or array_like
         Table grid: a number of equally spaced levels over ``u_range`` (default 41), or the
         levels (V); at most 401.
@@ -671,7 +686,7 @@ def identify_lsq(
     recs = _recordings(recordings)
     names = _unique_names(recs)
     _check_lengths(recs, names)
-    recs, delay_used, estimate, native = _resolve_delay(
+    recs, delay_used, estimate, native = _delay_recordings(
         recs, delay, initial_state, integer_native=True
     )
     names = _unique_names(recs)
@@ -692,7 +707,7 @@ def identify_lsq(
         raise ValueError(f"input range [{lo}, {hi}] V is empty: the input must vary")
     lv = _levels_arg(levels, lo, hi)
     assert lv is not None
-    w, y_min, details, usage_raw, warnings = identify_lsq_core(
+    w, y_min, details, spans, warnings = identify_lsq_core(
         recs,
         lv,
         lambdas=lambdas,
@@ -721,13 +736,13 @@ def identify_lsq(
     }
     usage = [
         DataUsage(
-            name=u["name"],
-            n_samples=u["n_samples"],
-            n_used=u["n_used"],
-            note=f"fitted from sample {u['first_used']}"
-            + ("" if u["exact_state"] else " (state not exact)"),
+            name=span.name,
+            n_samples=span.n_samples,
+            n_used=span.n_used,
+            note=f"fitted from sample {span.start}"
+            + ("" if span.exact_state else " (state not exact)"),
         )
-        for u in usage_raw
+        for span in spans
     ]
     # lsq reports the inexact-state recordings itself (usage notes)
     res, w_res = _recording_residuals(

@@ -61,8 +61,10 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from threadpoolctl import threadpool_limits
 
 from .. import _core
-from .._progress import progress_bar
+from .._progress import ProgressBar, progress_bar
 from ..initial_state import InitialState, burn_in_end, check_policy, initial_state_for
+from ..recording import SampledData
+from .spans import FittedSpan, fitted_spans
 
 __all__ = [
     "LsqDetails",
@@ -337,7 +339,8 @@ def robust_cholesky(H: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
     for ridge in (0.0, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4):
         Hr = H if ridge == 0.0 else H + (ridge * scale) * np.eye(m)
         try:
-            return cho_factor(Hr, check_finite=False)  # type: ignore[no-any-return]
+            fac: tuple[NDArray[np.float64], bool] = cho_factor(Hr, check_finite=False)
+            return fac
         except LinAlgError:
             continue
     raise ValueError("normal equations: not positive definite even with a 1e-4 relative ridge")
@@ -449,14 +452,14 @@ class _Prepared:
     yy: NDArray[np.float64]  # (K,)
     count: NDArray[np.int64]  # (K,)
     n_skipped: int
-    usage: list[dict[str, Any]]
+    spans: list[FittedSpan]
     warnings: list[str]
     timings: dict[str, float]
     unobserved_nodes: int = 0
 
 
 def _prepare(
-    recordings: Sequence[Any],
+    recordings: Sequence[SampledData],
     levels: NDArray[np.float64],
     folds: int,
     policy: InitialState,
@@ -464,37 +467,8 @@ def _prepare(
     names: Sequence[str],
 ) -> _Prepared:
     lo, hi = float(levels[0]), float(levels[-1])
-    pol = check_policy(policy)
-    warnings: list[str] = []
-    usage: list[dict[str, Any]] = []
-    spans: list[tuple[int, int]] = []
-    for name, rec in zip(names, recordings):
-        u = np.asarray(rec.u, dtype=float)
-        y = np.asarray(rec.y, dtype=float)
-        n_pairs = u.size - delay
-        if n_pairs < 1:
-            raise ValueError(f"{name}: {u.size} samples are too few for delay = {delay}")
-        start, exact = 0, True
-        if pol == "burn-in":
-            start, exact = burn_in_end(u[:n_pairs], lo, hi)
-            if not exact:
-                warnings.append(
-                    f"{name}: the input stays inside the table range ({float(u.min()):.6g} .. "
-                    f"{float(u.max()):.6g} V of {lo:.6g} .. {hi:.6g} V) and never saturates; "
-                    "relays it never switches are assumed at -1 (a constant output offset)"
-                )
-        used = n_pairs - start  # >= 1: the burn-in ends at a sample of the recording
-        spans.append((start, n_pairs))
-        usage.append(
-            {
-                "name": name,
-                "n_samples": int(u.size),
-                "n_used": int(used),
-                "first_used": int(start),
-                "exact_state": bool(exact),
-            }
-        )
-    total = sum(b - a for a, b in spans)
+    spans, warnings = fitted_spans(recordings, names, levels, policy, delay)
+    total = sum(span.n_used for span in spans)
     if total < folds:
         raise ValueError(
             f"only {total} samples to fit after the burn-in, fewer than folds = "
@@ -509,15 +483,15 @@ def _prepare(
     yy = np.zeros(folds)
     cnt = np.zeros(folds, dtype=np.int64)
     g0 = 0
-    for (start, n_pairs), rec in zip(spans, recordings):
-        u = np.ascontiguousarray(rec.u[:n_pairs], dtype=float)
-        y = np.ascontiguousarray(rec.y[delay : delay + n_pairs], dtype=float)
-        fold = -np.ones(n_pairs, dtype=np.int32)
-        k = np.arange(n_pairs - start)
-        fold[start:] = ((g0 + k) * folds // total).astype(np.int32)
-        g0 += n_pairs - start
+    for span in spans:
+        fold = -np.ones(span.u.size, dtype=np.int32)
+        k = np.arange(span.n_used)
+        fold[span.start :] = ((g0 + k) * folds // total).astype(np.int32)
+        g0 += span.n_used
         s0 = initial_state_for((lo, hi), policy)
-        Gr, br, yr, _, cr, _ = _core.normal_equations(levels, u, y, s0, fold, folds, "clamp")
+        Gr, br, yr, _, cr, _ = _core.normal_equations(
+            levels, span.u, span.y, s0, fold, folds, "clamp"
+        )
         G += Gr
         b += br
         yy += yr
@@ -527,7 +501,7 @@ def _prepare(
     Gw = np.stack([_transform_gram(G[k], levels.size) for k in range(folds)])
     bw = np.stack([_apply_Tt(b[k][:, None], levels.size)[:, 0] for k in range(folds)])
     t2 = time.perf_counter()
-    n_skipped = sum(int(r.u.size) for r in recordings) - total
+    n_skipped = sum(span.n_samples for span in spans) - total
     return _Prepared(
         levels,
         Gw,
@@ -535,7 +509,7 @@ def _prepare(
         yy,
         cnt,
         n_skipped,
-        usage,
+        spans,
         warnings,
         {"normal_equations": t1 - t0, "transform": t2 - t1},
         int(np.count_nonzero(np.diagonal(G.sum(axis=0))[:-1] <= 0.0)),
@@ -583,7 +557,7 @@ def _fit(
 
 
 def identify_lsq_core(
-    recordings: Sequence[Any],
+    recordings: Sequence[SampledData],
     levels: NDArray[np.float64],
     *,
     lambdas: str | Sequence[float],
@@ -594,10 +568,10 @@ def identify_lsq_core(
     names: Sequence[str],
     progress: bool = False,
     solver: str = "auto",
-) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
+) -> tuple[NDArray[np.float64], float, LsqDetails, list[FittedSpan], list[str]]:
     """Cell masses, y_min and the details of a least-squares identification (no model built).
 
-    Returns ``(w (cells, output units), y_min, details, usage, warnings)``; see
+    Returns ``(w (cells, output units), y_min, details, spans, warnings)``; see
     :func:`identify_lsq`.  With the sparse solver ``w`` may hold negative masses (the caller
     projects the model to Mp when ``nonnegative``).  ``progress`` shows a bar over the
     cross-validation fits (dense solver).
@@ -655,8 +629,8 @@ def _solve(
     nonnegative: bool,
     initial_state: InitialState,
     delay: int,
-    bar: Any,
-) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
+    bar: ProgressBar,
+) -> tuple[NDArray[np.float64], float, LsqDetails, list[FittedSpan], list[str]]:
     """Cross-validate the smoothness weight and fit (the body of :func:`identify_lsq_core`)."""
     R = roughness_matrix(levels)
     P = R.T @ R
@@ -708,7 +682,8 @@ def _solve(
         _reduce(Gtot, btot), Ps, float(lam[best]), nonnegative, free_sets[float(lam[best])][0]
     )
     t2 = time.perf_counter()
-    bar.update(bar.total - bar.n)  # a refinement value already tried was not refitted
+    if bar.total is not None:  # a refinement value already tried was not refitted
+        bar.update(bar.total - bar.n)
     warnings = list(prep.warnings)
     if not ok:
         warnings.append(
@@ -753,11 +728,11 @@ def _solve(
         unobserved_nodes=prep.unobserved_nodes,
         n_nodes=levels.size * (levels.size - 1) // 2,
     )
-    return w, float(theta[-1]), details, prep.usage, warnings
+    return w, float(theta[-1]), details, prep.spans, warnings
 
 
 def _solve_sparse(
-    recordings: Sequence[Any],
+    recordings: Sequence[SampledData],
     levels: NDArray[np.float64],
     lam: NDArray[np.float64],
     auto: bool,
@@ -766,7 +741,7 @@ def _solve_sparse(
     initial_state: InitialState,
     delay: int,
     names: Sequence[str],
-) -> tuple[NDArray[np.float64], float, LsqDetails, list[dict[str, Any]], list[str]]:
+) -> tuple[NDArray[np.float64], float, LsqDetails, list[FittedSpan], list[str]]:
     """Run the sparse solver: the branch of :func:`identify_lsq_core` (no bounds inside the fit)."""
     from .lsq_sparse import difference_matrix, solve_sparse, sparse_rows
 
@@ -817,7 +792,7 @@ def _solve_sparse(
         unobserved_nodes=fit.unobserved_nodes,
         n_nodes=m,
     )
-    return w, float(fit.theta[-1]), details, rows.usage, warnings
+    return w, float(fit.theta[-1]), details, rows.spans, warnings
 
 
 def weights_matrix(levels: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -33,7 +33,6 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -41,7 +40,9 @@ from numpy.typing import NDArray
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
 
 from .. import _core
-from ..initial_state import InitialState, burn_in_end, check_policy, initial_state_for
+from ..initial_state import InitialState, initial_state_for
+from ..recording import SampledData
+from .spans import FittedSpan, fitted_spans
 
 __all__ = [
     "difference_matrix",
@@ -192,13 +193,13 @@ class SparseRows:
     A: list[sp.csr_matrix]  # per fold
     y: list[NDArray[np.float64]]
     n_skipped: int
-    usage: list[dict[str, Any]]
+    spans: list[FittedSpan]
     warnings: list[str]
     seconds: float
 
 
 def sparse_rows(
-    recordings: Sequence[Any],
+    recordings: Sequence[SampledData],
     levels: NDArray[np.float64],
     folds: int,
     policy: InitialState,
@@ -208,44 +209,19 @@ def sparse_rows(
     """Rows ``r_t`` (Everett nodes and ``y_min``) of every fitted sample, split in time blocks.
 
     Burn-in, delay and the contiguous folds follow the dense solver
-    (:func:`preisach.identify.lsq.identify_lsq_core`).
+    (:func:`preisach.identify.lsq.identify_lsq_core`; the spans of
+    :func:`preisach.identify.lsq.fitted_spans`).
     """
     t0 = time.perf_counter()
     lo, hi = float(levels[0]), float(levels[-1])
-    pol = check_policy(policy)
     p = levels.size * (levels.size - 1) // 2 + 1
-    warnings: list[str] = []
-    usage: list[dict[str, Any]] = []
+    spans, warnings = fitted_spans(recordings, names, levels, policy, delay)
     blocks: list[tuple[sp.csr_matrix, NDArray[np.float64]]] = []
-    for name, rec in zip(names, recordings):
-        u = np.asarray(rec.u, dtype=float)
-        y = np.asarray(rec.y, dtype=float)
-        n_pairs = u.size - delay
-        if n_pairs < 1:
-            raise ValueError(f"{name}: {u.size} samples are too few for delay = {delay}")
-        start, exact = 0, True
-        if pol == "burn-in":
-            start, exact = burn_in_end(u[:n_pairs], lo, hi)
-            if not exact:
-                warnings.append(
-                    f"{name}: the input stays inside the table range ({float(u.min()):.6g} .. "
-                    f"{float(u.max()):.6g} of {lo:.6g} .. {hi:.6g}) and never saturates; "
-                    "relays it never switches are assumed at -1 (a constant output offset)"
-                )
-        ptr, idx, val, _ = _core.regressor_rows(
-            levels, np.ascontiguousarray(u[:n_pairs]), initial_state_for((lo, hi), policy)
-        )
-        A = sp.csr_matrix((val, idx.astype(np.int32), ptr), shape=(n_pairs, p))[start:]
-        blocks.append((A, y[delay + start : delay + n_pairs]))
-        usage.append(
-            {
-                "name": name,
-                "n_samples": int(u.size),
-                "n_used": int(n_pairs - start),
-                "first_used": int(start),
-                "exact_state": bool(exact),
-            }
-        )
+    for span in spans:
+        n_pairs = span.u.size
+        ptr, idx, val, _ = _core.regressor_rows(levels, span.u, initial_state_for((lo, hi), policy))
+        A = sp.csr_matrix((val, idx.astype(np.int32), ptr), shape=(n_pairs, p))[span.start :]
+        blocks.append((A, span.y[span.start :]))
     A_all = sp.vstack([blk[0] for blk in blocks], format="csr")
     y_all = np.concatenate([blk[1] for blk in blocks])
     total = y_all.size
@@ -257,8 +233,8 @@ def sparse_rows(
     edges = [k * total // folds for k in range(folds + 1)]
     A_k = [A_all[edges[k] : edges[k + 1]] for k in range(folds)]
     y_k = [y_all[edges[k] : edges[k + 1]] for k in range(folds)]
-    n_skipped = sum(int(np.size(r.u)) for r in recordings) - total
-    return SparseRows(A_k, y_k, n_skipped, usage, warnings, time.perf_counter() - t0)
+    n_skipped = sum(span.n_samples for span in spans) - total
+    return SparseRows(A_k, y_k, n_skipped, spans, warnings, time.perf_counter() - t0)
 
 
 class _TwoLevel:
@@ -304,14 +280,17 @@ class _Operator:
         return np.asarray(y)
 
 
-def _robust_cholesky(H: NDArray[np.float64]) -> Any:
+def _robust_cholesky(H: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool] | None:
     """Cholesky factor of ``H``, with an increasing ridge when round-off makes it indefinite."""
     scale = float(np.trace(H)) / max(H.shape[0], 1)
     if not (scale > 0 and math.isfinite(scale)):
         return None
     for ridge in (0.0, 1e-12, 1e-10, 1e-8, 1e-6):
         try:
-            return cho_factor(H + ridge * scale * np.eye(H.shape[0]), check_finite=False)
+            fac: tuple[NDArray[np.float64], bool] = cho_factor(
+                H + ridge * scale * np.eye(H.shape[0]), check_finite=False
+            )
+            return fac
         except LinAlgError:
             continue
     return None
@@ -423,7 +402,7 @@ def solve_sparse(
     iters = 0
     ok_all = True
 
-    def solve(k: int | None, lam: float, x0: Any) -> Any:
+    def solve(k: int | None, lam: float, x0: NDArray[np.float64] | None) -> NDArray[np.float64]:
         """Fit without fold ``k`` (all samples when None) at ``lam``, from ``x0``."""
         nonlocal iters, ok_all
         c = lam * scale
