@@ -32,12 +32,21 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
 from ._io import save_figure, write_json, write_text
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+    from .daq import Device
+    from .identify.fod_finder import CurveRecord
+    from .model import PreisachModel
+    from .recording import Recording
 
 __all__ = ["add_parser", "run_demo"]
 
@@ -50,7 +59,7 @@ class _Stages:
     The line ``[k/5] title ... detail (t s)`` goes to ``stream`` (stdout) when the stage ends.
     """
 
-    def __init__(self, stream: Any = None, *, progress: bool = True) -> None:
+    def __init__(self, stream: IO[str] | None = None, *, progress: bool = True) -> None:
         from ._progress import progress_bar
 
         self.stream = stream if stream is not None else sys.stdout
@@ -76,7 +85,7 @@ class _Stages:
             self.bar.close()
 
 
-def _save(fig: Any, path: Path, dpi: int = 100) -> str:
+def _save(fig: Figure, path: Path, dpi: int = 100) -> str:
     save_figure(fig, path, dpi=dpi)
     return path.name
 
@@ -87,7 +96,7 @@ def _md_table(head: list[str], rows: list[list[str]]) -> list[str]:
     return out
 
 
-def _aligned(rec: Any) -> Any:
+def _aligned(rec: Recording) -> Recording:
     """Pair ``u[k]`` with ``y[k + 1]``: the clocked loop reads ``y[k]`` before writing ``u[k]``."""
     from .recording import Recording
 
@@ -100,7 +109,7 @@ def _aligned(rec: Any) -> Any:
     )
 
 
-def _record(rig: Any, u: np.ndarray, path: Path, name: str) -> Any:
+def _record(rig: Device, u: np.ndarray, path: Path, name: str) -> Recording:
     """Play ``u`` (V) on the rig, stream it to ``path``, and load the recording."""
     from .daq import run_trial
     from .recording import Recording
@@ -126,22 +135,29 @@ def run_demo(args: argparse.Namespace) -> int:
         return _run_demo(args)
 
 
+@dataclass
+class _Demo:
+    """What the stages share: where they write, the stage lines, and the report they build.
+
+    ``md`` collects the lines of ``report.md``; ``key`` the numbers of ``report.json``.
+    """
+
+    out: Path
+    prog: _Stages
+    bars: bool  # progress bars of the long calls inside the stages
+    seeds: int
+    version: str
+    md: list[str] = field(default_factory=list)
+    key: dict[str, Any] = field(default_factory=dict)
+
+
 def _run_demo(args: argparse.Namespace) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
 
-    from . import __version__, plotting
-    from .daq import virtual_ss15
-    from .diagnose import diagnose
-    from .experiments import THESIS_GAINS, regulation_sweep
-    from .identify import format_table, identify_fod, identify_surface
+    from . import __version__
     from .model import PreisachModel
-    from .neutral import check_mp, neutral_locus
-    from .studies.diagnosis_cases import make_case
-    from .surface import TABLE_3_1
-    from .verify import verify
-    from .waveforms import cml_input, concatenate, decaying_sine, fod_sweep, wiping_out_input
 
     seeds = int(args.seeds)
     if seeds < 2:
@@ -152,25 +168,48 @@ def _run_demo(args: argparse.Namespace) -> int:
     t_start = time.perf_counter()
     print(f"preisach demo {__version__}: the virtual SS15, from identification to diagnosis")
     print(f"output folder: {out.resolve()}")
-    prog = _Stages(progress=not getattr(args, "quiet", False))
-    bars = not getattr(args, "quiet", False)  # progress bars of the long calls in the stages
-    md: list[str] = []
-    key: dict[str, Any] = {}
+    quiet = bool(getattr(args, "quiet", False))
+    ctx = _Demo(out, _Stages(progress=not quiet), not quiet, seeds, __version__)
     truth_model = PreisachModel.builtin("ss15-1hz")
+    rig, sweep = _identification_sweep(ctx, truth_model)
+    m_fod, m_srf = _identification(ctx, sweep)
+    _verification(ctx, rig, m_fod, m_srf)
+    _neutral_states(ctx, m_srf)
+    _diagnosis(ctx)
+    total = _write_report(ctx, t_start)
+    print(
+        f"done in {total:.1f} s; wrote {out / 'report.md'} (figures, recordings and models "
+        f"in {out})"
+    )
+    return 0
 
-    # 1 ------------------------------------------------------------------ identification sweep
-    with prog.stage("identification sweep on the virtual SS15 rig (Fig 3.17)") as st:
+
+def _identification_sweep(ctx: _Demo, truth_model: PreisachModel) -> tuple[Device, Recording]:
+    """Stage 1: the initialisation and the 21-level FOD sweep, recorded on the virtual rig."""
+    from .daq import virtual_ss15
+    from .waveforms import concatenate, decaying_sine, fod_sweep
+
+    with ctx.prog.stage("identification sweep on the virtual SS15 rig (Fig 3.17)") as st:
         rig = virtual_ss15(truth_model, "anhysteretic", adc_noise=0.5e-3, adc_bits=14, seed=1)
         sweep_in = concatenate(decaying_sine(12.0, 1.0, 100.0), fod_sweep(21, frequency=1.0))
-        sweep = _record(rig, sweep_in.u, out / "recordings" / "fod_sweep.csv", "fod_sweep")
+        sweep = _record(rig, sweep_in.u, ctx.out / "recordings" / "fod_sweep.csv", "fod_sweep")
         st.detail = f"{sweep.u.size} samples, {sweep.duration:.0f} s at 1 kHz"
-    key["sweep_samples"] = int(sweep.u.size)
+    ctx.key["sweep_samples"] = int(sweep.u.size)
+    return rig, sweep
 
-    # 2 ------------------------------------------------------------------ identification
-    with prog.stage("identification: Mayergoyz and the square-root surface") as st:
+
+def _identification(ctx: _Demo, sweep: Recording) -> tuple[PreisachModel, PreisachModel]:
+    """Stage 2: Mayergoyz and the square-root surface; report sections 1 and 2."""
+    from . import plotting
+    from .identify import format_table, identify_fod, identify_surface
+    from .surface import TABLE_3_1
+
+    out = ctx.out
+    with ctx.prog.stage("identification: Mayergoyz and the square-root surface") as st:
         aligned = _aligned(sweep)
-        m_fod, r_fod = identify_fod(aligned, project=True, name="Mayergoyz, 21 levels")
-        m_srf, r_srf = identify_surface(aligned, frequency=1.0, name="square-root surface")
+        r_fod = identify_fod(aligned, project=True, name="Mayergoyz, 21 levels")
+        r_srf = identify_surface(aligned, frequency=1.0, name="square-root surface")
+        m_fod, m_srf = r_fod.model, r_srf.model
         m_fod.save(out / "model_mayergoyz.npz")
         m_srf.save(out / "model_surface.npz")
         fd = r_fod.fod
@@ -182,15 +221,15 @@ def _run_demo(args: argparse.Namespace) -> int:
             f"{r_fod.node_residuals.max_pct:.2f} % of range"
         )
     sf = r_srf.surface_fit
-    key["fod_curves"] = len(fd.used_curves)
-    key["surface"] = {
+    ctx.key["fod_curves"] = len(fd.used_curves)
+    ctx.key["surface"] = {
         k: float(getattr(sf.surface, k))
         for k in ("xbar4", "xbar5", "x7", "x8", "x9", "y_max", "y_min")
     }
-    md += [
+    ctx.md += [
         "# preisach demo: the virtual SS15 from identification to diagnosis",
         "",
-        f"Made by `preisach demo` (preisach {__version__}). The device is the *virtual SS15*: "
+        f"Made by `preisach demo` (preisach {ctx.version}). The device is the *virtual SS15*: "
         "the thesis's 1 Hz Preisach model (Table 3.1 through Eq 3.2) between the amplifier "
         "calibration of Appendix B (V_in = -14.12 V_bin - 0.02) and a 14-bit ADC with 0.5 mV "
         "rms noise, run by the same clocked trial loop that drives a real rig "
@@ -230,9 +269,15 @@ def _run_demo(args: argparse.Namespace) -> int:
         f"![identification: FOD surface, weight density and kappa]({fig_id})",
         "",
     ]
+    return m_fod, m_srf
 
-    # 3 ------------------------------------------------------------------ verification
-    with prog.stage("verification on wiping-out, CML and multi-sine recordings") as st:
+
+def _verification(ctx: _Demo, rig: Device, m_fod: PreisachModel, m_srf: PreisachModel) -> None:
+    """Stage 3: wiping-out, CML and multi-sine recordings predicted by both models."""
+    from .verify import verify
+    from .waveforms import cml_input, wiping_out_input
+
+    with ctx.prog.stage("verification on wiping-out, CML and multi-sine recordings") as st:
         t_ms = np.arange(0.0, 8.0, 1e-3)
         multisine = (
             60.0 * np.sin(2 * np.pi * 0.5 * t_ms)
@@ -244,12 +289,12 @@ def _run_demo(args: argparse.Namespace) -> int:
             "cml": cml_input(frequency=1.0).u,
             "multisine": np.r_[np.linspace(-100.0, multisine[0], 500), multisine],
         }
-        recs = [_record(rig, u, out / "recordings" / f"{n}.csv", n) for n, u in tests.items()]
+        recs = [_record(rig, u, ctx.out / "recordings" / f"{n}.csv", n) for n, u in tests.items()]
         v_fod = verify(m_fod, recs, delay=1)
         v_srf = verify(m_srf, recs, delay=1)
-        fig_ver = _save(v_srf.plot(), out / "verification.png", dpi=80)
+        fig_ver = _save(v_srf.plot(), ctx.out / "verification.png", dpi=80)
         st.detail = f"largest error {max(v_fod.max_pct, v_srf.max_pct):.2f} % of the output range"
-    key["verification_max_pct"] = {"mayergoyz": v_fod.max_pct, "surface": v_srf.max_pct}
+    ctx.key["verification_max_pct"] = {"mayergoyz": v_fod.max_pct, "surface": v_srf.max_pct}
     rows = [
         [
             a.experiment,
@@ -260,7 +305,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         ]
         for a, b in zip(v_fod.rows, v_srf.rows)
     ]
-    md += [
+    ctx.md += [
         "## 3. Verification on other experiments (§3.3.4)",
         "",
         "Each recording's input is simulated through the identified models (the rig's clocked "
@@ -278,18 +323,26 @@ def _run_demo(args: argparse.Namespace) -> int:
         "",
     ]
 
-    # 4 ------------------------------------------------------------------ neutral states
-    with prog.stage("neutral states, open-loop drift and closed-loop PI (small sweep)") as st:
+
+def _neutral_states(ctx: _Demo, m_srf: PreisachModel) -> None:
+    """Stage 4: N(l), the three initial states, the drift and the closed-loop sweeps."""
+    from . import plotting
+    from .experiments import THESIS_GAINS, regulation_sweep
+    from .neutral import check_mp, neutral_locus
+
+    with ctx.prog.stage("neutral states, open-loop drift and closed-loop PI (small sweep)") as st:
         locus = neutral_locus(m_srf)
         mp = check_mp(m_srf)
-        sweep_kw: dict[str, Any] = {"gains": THESIS_GAINS, "seeds": range(seeds), "y_d": 1.0}
-        drift = regulation_sweep("drift", {1.0: m_srf}, **sweep_kw, progress=bars)
-        effort = regulation_sweep("closed-loop", {1.0: m_srf}, **sweep_kw, progress=bars)
+        sweep_kw: dict[str, Any] = {"gains": THESIS_GAINS, "seeds": range(ctx.seeds), "y_d": 1.0}
+        drift = regulation_sweep("drift", {1.0: m_srf}, **sweep_kw, progress=ctx.bars)
+        effort = regulation_sweep("closed-loop", {1.0: m_srf}, **sweep_kw, progress=ctx.bars)
         inits = list(drift.states)
-        fig_nl = _save(plotting.plot_initial_states(drift), out / "neutral_locus.png")
-        fig_dr = _save(plotting.plot_drift_summary(drift), out / "drift.png")
-        fig_ef = _save(plotting.plot_effort_summary(effort), out / "control_effort.png")
-        fig_pc = _save(plotting.plot_effort_increase(effort), out / "control_effort_increase.png")
+        fig_nl = _save(plotting.plot_initial_states(drift), ctx.out / "neutral_locus.png")
+        fig_dr = _save(plotting.plot_drift_summary(drift), ctx.out / "drift.png")
+        fig_ef = _save(plotting.plot_effort_summary(effort), ctx.out / "control_effort.png")
+        fig_pc = _save(
+            plotting.plot_effort_increase(effort), ctx.out / "control_effort_increase.png"
+        )
         comp_d, comp_c = drift.comparisons(), effort.comparisons()
         n_ok_d = sum(c["n_smallest"] for c in comp_d)
         n_ok_c = sum(c["n_smallest"] for c in comp_c)
@@ -297,8 +350,8 @@ def _run_demo(args: argparse.Namespace) -> int:
             f"psi_n drifts least at {n_ok_d}/{len(comp_d)} gains, needs least effort at "
             f"{n_ok_c}/{len(comp_c)}"
         )
-    key["drift_n_smallest"] = f"{n_ok_d}/{len(comp_d)}"
-    key["effort_n_smallest"] = f"{n_ok_c}/{len(comp_c)}"
+    ctx.key["drift_n_smallest"] = f"{n_ok_d}/{len(comp_d)}"
+    ctx.key["effort_n_smallest"] = f"{n_ok_c}/{len(comp_c)}"
     names = {"n": "ψn", "a": "ψa", "d": "ψd"}
     state_rows = [
         [
@@ -325,8 +378,8 @@ def _run_demo(args: argparse.Namespace) -> int:
         effort_rows.append([f"{g:.1f}", *cells])
     pct = effort.percentage_table()
     pct_rows = [[f"{r['normalised_gain']:.4f}", f"{r['a_1']:.1f}", f"{r['d_1']:.1f}"] for r in pct]
-    key["table_5_1_percent"] = {"a": [r["a_1"] for r in pct], "d": [r["d_1"] for r in pct]}
-    md += [
+    ctx.key["table_5_1_percent"] = {"a": [r["a_1"] for r in pct], "d": [r["d_1"] for r in pct]}
+    ctx.md += [
         "## 4. Neutral states, drift and control effort (chapters 4-5)",
         "",
         "For one desired output there are many states. The *neutral* state ψn (Eq 2.17) is "
@@ -353,7 +406,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         f"![major loop, N(l) and the initial states]({fig_nl})",
         "",
         f"**Open-loop drift** (§4.2, Fig 4.12): ȳ(8,10) - ȳ(0,2) in mV, mean ± std over "
-        f"{seeds} noise seeds per noise gain K_n:",
+        f"{ctx.seeds} noise seeds per noise gain K_n:",
         "",
         *_md_table(["K_n", "ψn", "ψa", "ψd"], drift_rows),
         "",
@@ -378,18 +431,24 @@ def _run_demo(args: argparse.Namespace) -> int:
         "",
     ]
 
-    # 5 ------------------------------------------------------------------ diagnosis
-    with prog.stage("diagnosis of recordings with a concealed structural mode") as st:
+
+def _diagnosis(ctx: _Demo) -> None:
+    """Stage 5: diagnose recordings of a rig with a concealed structural mode."""
+    from . import plotting
+    from .diagnose import diagnose
+    from .studies.diagnosis_cases import make_case
+
+    with ctx.prog.stage("diagnosis of recordings with a concealed structural mode") as st:
         case = make_case(
             "structural_resonance", seed=31, scale=0.3, effect_size=3.5, generator="rig"
         )
         base = case.identify()
-        rep = diagnose(base, case.recordings, identification=case.identification, progress=bars)
-        rep.to_json(out / "diagnosis.json")
-        fig_dg = _save(plotting.plot_diagnosis(rep), out / "diagnosis.png", dpi=75)
+        rep = diagnose(base, case.recordings, identification=case.identification, progress=ctx.bars)
+        rep.to_json(ctx.out / "diagnosis.json")
+        fig_dg = _save(plotting.plot_diagnosis(rep), ctx.out / "diagnosis.png", dpi=75)
         fig_rm = _save(
             plotting.plot_residual_map(base, case.recordings),
-            out / "residual_map.png",
+            ctx.out / "residual_map.png",
         )
         st.detail = f"verdict: {rep.verdict}"
     blocks = case.truth.get("params", {}).get("output_blocks", [])
@@ -397,7 +456,7 @@ def _run_demo(args: argparse.Namespace) -> int:
         f"{b['kind']} " + ", ".join(f"{k} = {v:.4g}" for k, v in b.items() if k != "kind")
         for b in blocks
     ) or json.dumps(case.truth.get("params", {}))
-    key["diagnosis"] = {
+    ctx.key["diagnosis"] = {
         "truth": case.kind,
         "verdict": rep.verdict,
         "rmse_before_mV": rep.rmse_before * 1e3,
@@ -406,7 +465,7 @@ def _run_demo(args: argparse.Namespace) -> int:
     effect_lines = [f"* **{e.name}**: {e.statement}. {e.evidence}" for e in rep.effects] or [
         "* no effect improved the held-out error clearly beyond the noise"
     ]
-    md += [
+    ctx.md += [
         "## 5. Diagnosis of a concealed effect",
         "",
         "A second virtual rig carries one effect the classical Preisach model leaves out: "
@@ -431,9 +490,15 @@ def _run_demo(args: argparse.Namespace) -> int:
         "",
     ]
 
+
+def _write_report(ctx: _Demo, t_start: float) -> float:
+    """Add the closing section, write ``report.md`` and ``report.json``; return the run time (s)."""
     total = time.perf_counter() - t_start
-    key["seconds"] = {**{k: round(v, 2) for k, v in prog.times.items()}, "total": round(total, 2)}
-    md += [
+    ctx.key["seconds"] = {
+        **{k: round(v, 2) for k, v in ctx.prog.times.items()},
+        "total": round(total, 2),
+    }
+    ctx.md += [
         "## Files and the full studies",
         "",
         "`recordings/*.csv` (the rig's recordings, `preisach.Recording.load`), "
@@ -446,20 +511,16 @@ def _run_demo(args: argparse.Namespace) -> int:
         "source tree, or `preisach experiment drift|closed-loop --model ss15 --json OUT`.",
         "",
         f"Run time: {total:.1f} s ("
-        + ", ".join(f"stage {i + 1} {t:.1f} s" for i, t in enumerate(prog.times.values()))
+        + ", ".join(f"stage {i + 1} {t:.1f} s" for i, t in enumerate(ctx.prog.times.values()))
         + ").",
         "",
     ]
-    write_text(out / "report.md", "\n".join(md), what="report")
-    write_json(out / "report.json", _finite(key), indent=2, what="report")
-    print(
-        f"done in {total:.1f} s; wrote {out / 'report.md'} (figures, recordings and models "
-        f"in {out})"
-    )
-    return 0
+    write_text(ctx.out / "report.md", "\n".join(ctx.md), what="report")
+    write_json(ctx.out / "report.json", _finite(ctx.key), indent=2, what="report")
+    return total
 
 
-def _reasons(curves: list[Any]) -> str:
+def _reasons(curves: list[CurveRecord]) -> str:
     """`` (3 because ...; 1 because ...)`` from the finder's reasons, grouped by their cause."""
     counts: dict[str, int] = {}
     for c in curves:
