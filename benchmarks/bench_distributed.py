@@ -13,10 +13,11 @@ Run:  python benchmarks/bench_distributed.py [--workers N] [--seeds S] [--tiny K
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import time
+
+from _bench import parser
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # BLAS pinned: workers and reference alike
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -27,9 +28,7 @@ def _empty(task: int) -> int:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = parser(__doc__)
     ap.add_argument("--workers", type=int, default=0, help="most workers (default: the cores)")
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--tiny", type=int, default=400, help="empty tasks for the overhead")

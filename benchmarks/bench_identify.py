@@ -29,6 +29,7 @@ import resource
 import time
 
 import numpy as np
+from _bench import available_cores, best_of, parser
 from preisach import PreisachModel, Recording, _core
 from preisach.identify import find_fod_curves, identify_fod, identify_lsq, identify_surface
 from preisach.noise import uniform_filtered_noise
@@ -52,26 +53,15 @@ def cpu_of(fn) -> tuple[float, float, object]:
     return time.perf_counter() - w0, time.process_time() - c0, out
 
 
-def best_of(fn, repeats: int) -> tuple[float, object]:
-    best, out = np.inf, None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
-
-
 def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = parser(__doc__)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--samples", type=int, default=100_000)
     ap.add_argument("--levels", type=int, default=41)
     ap.add_argument("--big", action="store_true", help="also 201 levels from 1e6 samples")
     ap.add_argument("--skip-fod", action="store_true", help="only the least-squares parts")
     args = ap.parse_args()
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = available_cores()
     print(f"cores available: {cores}; BLAS threads: 1; load average {os.getloadavg()[0]:.1f}")
     with threadpool_limits(limits=1, user_api="blas"):
         if not args.skip_fod:

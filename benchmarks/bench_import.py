@@ -16,12 +16,13 @@ Run:  python benchmarks/bench_import.py [--repeats N]
 
 from __future__ import annotations
 
-import argparse
 import glob
 import importlib.util
 import os
 import subprocess
 import sys
+
+from _bench import available_cores, parser
 
 TARGET_MS = 50.0
 
@@ -77,13 +78,11 @@ def best_ms(bodies: dict[str, str], repeats: int) -> dict[str, float]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = parser(__doc__)
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
 
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = available_cores()
     ms = best_ms(
         {
             "numpy": "import numpy",

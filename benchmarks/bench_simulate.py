@@ -15,11 +15,8 @@ Run:  python benchmarks/bench_simulate.py [--samples N] [--reference-samples N]
 
 from __future__ import annotations
 
-import argparse
-import os
-import time
-
 import numpy as np
+from _bench import available_cores, best_of, parser
 from preisach import PreisachModel
 from preisach.reference import RelayGrid
 from preisach.surface import TABLE_3_1
@@ -35,19 +32,8 @@ def random_walk(n: int, seed: int, step: float = 2.0, lo: float = -100.0, hi: fl
     return lo + np.where(x > span, 2 * span - x, x)
 
 
-def best_of(fn, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
-
-
 def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = parser(__doc__)
     ap.add_argument("--samples", type=int, default=10_000_000)
     ap.add_argument("--reference-samples", type=int, default=5_000)
     ap.add_argument("--levels", type=int, default=41)
@@ -57,26 +43,24 @@ def main() -> None:
     model = PreisachModel.builtin("ss15-1hz", levels=args.levels)
     u = random_walk(args.samples, seed=1)
     s0 = model.negative_saturation()
-    t_fast = best_of(lambda: model.simulate(u, s0), args.repeats)
+    t_fast, _ = best_of(lambda: model.simulate(u, s0), args.repeats)
     fast = args.samples / t_fast
 
     ref = RelayGrid.from_everett(TABLE_3_1[1].everett, -100.0, 100.0, 200, model.y_min)
     ur = u[: args.reference_samples]
     with threadpool_limits(limits=1, user_api="blas"):  # the reference on one core
-        t_ref = best_of(lambda: (ref.reset(), ref.run(ur)), 1)
+        t_ref, _ = best_of(lambda: (ref.reset(), ref.run(ur)), 1)
     slow = ur.size / t_ref
     # Same input, same answers (up to the relay grid's discretisation).
     ref.reset()
     gap = np.abs(ref.run(ur) - model.simulate(ur, s0).output).max()
 
-    cores = (
-        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    )
+    cores = available_cores()
     runs = max(8, 2 * cores)
     per = max(args.samples // runs, 1)
     U = np.stack([random_walk(per, seed=10 + r) for r in range(runs)])
-    t1 = best_of(lambda: model.simulate_batch(U, s0, threads=1), args.repeats)
-    tn = best_of(lambda: model.simulate_batch(U, s0, threads=0), args.repeats)
+    t1, _ = best_of(lambda: model.simulate_batch(U, s0, threads=1), args.repeats)
+    tn, _ = best_of(lambda: model.simulate_batch(U, s0, threads=0), args.repeats)
 
     print(f"model: {model}")
     print(

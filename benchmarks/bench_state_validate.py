@@ -10,11 +10,10 @@ Run:  python benchmarks/bench_state_validate.py [--pieces N] [--repeats N]
 
 from __future__ import annotations
 
-import argparse
-import os
 import time
 
 import numpy as np
+from _bench import available_cores, parser
 from preisach import PreisachModel, _core
 
 
@@ -30,9 +29,7 @@ def best_of(fn, repeats: int, inner: int) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    ap = parser(__doc__)
     ap.add_argument("--pieces", type=int, default=20_000)
     ap.add_argument("--repeats", type=int, default=7)
     args = ap.parse_args()
@@ -53,7 +50,7 @@ def main() -> None:
     big_args, small_args = build(big), build(small)
     t_big = best_of(lambda: _core.State(*big_args), args.repeats, 20)
     t_small = best_of(lambda: _core.State(*small_args), args.repeats, 2000)
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    cores = available_cores()
     per_piece = (t_big - t_small) / (n_big - n_small) * 1e9
     print(f"cores obtained: {cores} (single-threaded measurement)")
     print(f"State from arrays, {n_big} pieces: {t_big * 1e6:.1f} us")

@@ -18,8 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .._blas import one_blas_thread
-from .initialisation import Initialisation
+from .initialisation import Initialisation, paired_trials
 from .plant import Plant
 from .protocol import ClosedLoopProtocol, ExperimentResult, control_effort, window_mean
 
@@ -76,7 +75,6 @@ class ClosedLoopResult(ExperimentResult):
         return plot_closed_loop_trial(self, fig=fig)
 
 
-@one_blas_thread  # the effort norm (Eq 5.3) on one BLAS thread: 3-100x faster under load
 def closed_loop_trials(
     plant: Plant,
     init: Initialisation,
@@ -116,17 +114,7 @@ def closed_loop_trials(
 
     """
     p = ClosedLoopProtocol() if protocol is None else protocol
-    gains = [float(g) for g in gains]
-    seeds = [int(s) for s in seeds]
-    if len(gains) != len(seeds):
-        raise ValueError(
-            f"gains and seeds: need the same length, got {len(gains)} and {len(seeds)}"
-        )
-    ts = float(plant.sample_time)
-    if not np.isclose(init.waveform.sample_time, ts, rtol=1e-9):
-        raise ValueError(
-            f"init was made at {init.waveform.sample_time:g} s, the plant samples at {ts:g} s"
-        )
+    gains, seeds, ts = paired_trials(plant, init, gains, seeds)
     cfg = p.pi_config(init.y_d, ts)
     U_open = p.open_inputs(init.offset, gains, seeds, ts)
     batch = getattr(plant, "run_closed_loop_batch", None)
