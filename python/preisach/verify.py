@@ -530,8 +530,59 @@ class Comparison:
         return self.y_return - self.y_first
 
 
+class _PropertyTest:
+    """What the wiping-out and the congruency results share: percentages, verdict, HTML, JSON.
+
+    A subclass (a dataclass with ``output_range`` and ``tolerance`` fields) says what its
+    ``max_difference`` is and whether its recording was testable at all.
+    """
+
+    output_range: float
+    tolerance: float
+
+    @property
+    def max_difference(self) -> float:
+        """The largest difference the test measured (V)."""
+        raise NotImplementedError
+
+    @property
+    def _tested(self) -> bool:
+        raise NotImplementedError
+
+    @property
+    def max_pct(self) -> float:
+        """``max_difference`` in % of the output range."""
+        return 100.0 * self.max_difference / self.output_range
+
+    @property
+    def passed(self) -> bool:
+        """At least one comparison, and every one within ``tolerance``."""
+        return self._tested and self.max_pct <= self.tolerance
+
+    def _verdict(self, untestable: str) -> str:
+        """``PASS``/``FAIL`` with the tolerance, or ``NOT TESTABLE (untestable)``."""
+        if not self._tested:
+            return f"NOT TESTABLE ({untestable})"
+        return f"{'PASS' if self.passed else 'FAIL'} (tolerance {self.tolerance:g} %)"
+
+    def _repr_html_(self) -> str:
+        """HTML for Jupyter: the verdict and the comparisons."""
+        from ._display import property_test_html
+
+        return property_test_html(self)
+
+    def _summary(self) -> dict[str, Any]:
+        return {
+            "max_difference": self.max_difference,
+            "max_pct": self.max_pct,
+            "passed": self.passed,
+            "tolerance": self.tolerance,
+            "output_range": self.output_range,
+        }
+
+
 @dataclass
-class WipingOutResult:
+class WipingOutResult(_PropertyTest):
     """Result of :func:`wiping_out_metric`.
 
     Attributes
@@ -554,14 +605,8 @@ class WipingOutResult:
         return max((abs(c.difference) for c in self.comparisons), default=0.0)
 
     @property
-    def max_pct(self) -> float:
-        """``max_difference`` in % of the output range."""
-        return 100.0 * self.max_difference / self.output_range
-
-    @property
-    def passed(self) -> bool:
-        """At least one comparison, and every one within ``tolerance``."""
-        return bool(self.comparisons) and self.max_pct <= self.tolerance
+    def _tested(self) -> bool:
+        return bool(self.comparisons)
 
     def table(self) -> str:
         """Format the comparisons as text."""
@@ -569,11 +614,7 @@ class WipingOutResult:
             f"wiping-out test: {len(self.comparisons)} returns to a reversal value; max "
             f"|dy| = {self.max_difference:.4g} V = {self.max_pct:.3f} % of "
             f"{self.output_range:.4g} V -> "
-            + (
-                f"{'PASS' if self.passed else 'FAIL'} (tolerance {self.tolerance:g} %)"
-                if self.comparisons
-                else "NOT TESTABLE (no return to a reversal value in this recording)"
-            ),
+            + self._verdict("no return to a reversal value in this recording"),
             f"{'branch':<11} {'level (V)':>10} {'t1 (s)':>9} {'t2 (s)':>9} {'y1 (V)':>10} "
             f"{'y2 (V)':>10} {'dy (V)':>10} {'dy %':>7}",
         ]
@@ -585,20 +626,10 @@ class WipingOutResult:
             )
         return "\n".join(lines)
 
-    def _repr_html_(self) -> str:
-        """HTML for Jupyter: the verdict and the comparisons."""
-        from ._display import property_test_html
-
-        return property_test_html(self)
-
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly form."""
         return {
-            "max_difference": self.max_difference,
-            "max_pct": self.max_pct,
-            "passed": self.passed,
-            "tolerance": self.tolerance,
-            "output_range": self.output_range,
+            **self._summary(),
             "comparisons": [{**c.__dict__, "difference": c.difference} for c in self.comparisons],
         }
 
@@ -720,7 +751,7 @@ class LoopPair:
 
 
 @dataclass
-class CongruencyResult:
+class CongruencyResult(_PropertyTest):
     """Result of :func:`congruency_metric`.
 
     Attributes
@@ -746,14 +777,8 @@ class CongruencyResult:
         return max((p.shape_difference for p in self.pairs), default=0.0)
 
     @property
-    def max_pct(self) -> float:
-        """``max_difference`` in % of the output range."""
-        return 100.0 * self.max_difference / self.output_range
-
-    @property
-    def passed(self) -> bool:
-        """At least one pair, and every one within ``tolerance``."""
-        return bool(self.pairs) and self.max_pct <= self.tolerance
+    def _tested(self) -> bool:
+        return bool(self.pairs)
 
     def table(self) -> str:
         """Format the loop pairs as text."""
@@ -761,11 +786,7 @@ class CongruencyResult:
             f"congruent minor loop test: {self.n_loops} minor loops, {len(self.pairs)} "
             f"comparable pairs; max shape difference {self.max_difference:.4g} V = "
             f"{self.max_pct:.3f} % of {self.output_range:.4g} V -> "
-            + (
-                f"{'PASS' if self.passed else 'FAIL'} (tolerance {self.tolerance:g} %)"
-                if self.pairs
-                else "NOT TESTABLE (no comparable loop pairs in this recording)"
-            ),
+            + self._verdict("no comparable loop pairs in this recording"),
             f"{'low (V)':>9} {'high (V)':>9} {'tA (s)':>9} {'tB (s)':>9} {'shift (V)':>10} "
             f"{'shape (V)':>10} {'shape %':>8}",
         ]
@@ -777,20 +798,10 @@ class CongruencyResult:
             )
         return "\n".join(lines)
 
-    def _repr_html_(self) -> str:
-        """HTML for Jupyter: the verdict and the comparisons."""
-        from ._display import property_test_html
-
-        return property_test_html(self)
-
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly form."""
         return {
-            "max_difference": self.max_difference,
-            "max_pct": self.max_pct,
-            "passed": self.passed,
-            "tolerance": self.tolerance,
-            "output_range": self.output_range,
+            **self._summary(),
             "n_loops": self.n_loops,
             "pairs": [dict(p.__dict__) for p in self.pairs],
         }

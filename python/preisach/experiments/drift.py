@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .initialisation import Initialisation
+from .initialisation import Initialisation, paired_trials
 from .plant import Plant
 from .protocol import DriftProtocol, ExperimentResult, differential_drift
 
@@ -96,17 +96,7 @@ def drift_trials(
 
     """
     p = DriftProtocol() if protocol is None else protocol
-    gains = [float(g) for g in gains]
-    seeds = [int(s) for s in seeds]
-    if len(gains) != len(seeds):
-        raise ValueError(
-            f"gains and seeds: need the same length, got {len(gains)} and {len(seeds)}"
-        )
-    ts = float(plant.sample_time)
-    if not np.isclose(init.waveform.sample_time, ts, rtol=1e-9):
-        raise ValueError(
-            f"init was made at {init.waveform.sample_time:g} s, the plant samples at {ts:g} s"
-        )
+    gains, seeds, ts = paired_trials(plant, init, gains, seeds)
     U = p.open_inputs(init.offset, gains, seeds, ts)
     batch = getattr(plant, "run_open_loop_batch", None)
     if init.state is not None and batch is not None:

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -490,6 +491,27 @@ class Initialisation:
             "hold_ok": self.hold_ok,
             "waveform": self.waveform.to_dict(),
         }
+
+
+def paired_trials(
+    plant: Plant, init: Initialisation, gains: Sequence[float], seeds: Sequence[int]
+) -> tuple[list[float], list[int], float]:
+    """Check a batch of trials from ``init``: one seed per gain, ``init`` made on this clock.
+
+    Returns the gains, the seeds and the plant's sample time (s).
+    """
+    gain_list = [float(g) for g in gains]
+    seed_list = [int(s) for s in seeds]
+    if len(gain_list) != len(seed_list):
+        raise ValueError(
+            f"gains and seeds: need the same length, got {len(gain_list)} and {len(seed_list)}"
+        )
+    ts = float(plant.sample_time)
+    if not np.isclose(init.waveform.sample_time, ts, rtol=1e-9):
+        raise ValueError(
+            f"init was made at {init.waveform.sample_time:g} s, the plant samples at {ts:g} s"
+        )
+    return gain_list, seed_list, ts
 
 
 def _measure(plant: Plant, wave: Waveform, settle: int) -> float:

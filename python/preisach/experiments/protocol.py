@@ -136,6 +136,31 @@ def control_effort(
     return float(np.sqrt(np.sum(d * d))), ubar
 
 
+def _noisy_rows(
+    noise: NoiseSpec,
+    input_gain: float,
+    offset: float,
+    gains: list[float],
+    seeds: list[int],
+    sample_time: float,
+    n: int,
+    window: tuple[int, int],
+    duration: float,
+) -> NDArray[np.float64]:
+    """Input rows (V), one per (gain, seed): ``offset``, plus the seed's noise on ``window``.
+
+    The noise (``duration`` s of :func:`trial_noise`) is scaled by ``input_gain * gain`` and
+    added from sample ``window[0]`` on, cut at ``window[1]``.
+    """
+    start, stop = window
+    rows = np.full((len(gains), n), float(offset))
+    for r, (g, s) in enumerate(zip(gains, seeds)):
+        eta = trial_noise(noise, sample_time, duration, s)
+        m = min(len(eta), stop - start)
+        rows[r, start : start + m] += input_gain * g * eta[:m]
+    return rows
+
+
 @lru_cache(maxsize=256)
 def _cached_noise(spec: NoiseSpec, duration: float, seed: int) -> NDArray[np.float64]:
     x = spec.generate(duration, seed=seed)
@@ -261,13 +286,18 @@ class DriftProtocol:
     ) -> NDArray[np.float64]:
         """Input rows (V) of the test segment for every (gain, seed) pair, in that order."""
         n = _index(self.duration, sample_time)
-        n0 = _index(self.hold, sample_time)
-        rows = np.full((len(gains), n), float(offset))
-        for r, (g, s) in enumerate(zip(gains, seeds)):
-            eta = trial_noise(self.noise, sample_time, self.noise_duration, s)
-            m = min(len(eta), n - n0)
-            rows[r, n0 : n0 + m] += self.input_gain * g * eta[:m]
-        return rows
+        window = (_index(self.hold, sample_time), n)
+        return _noisy_rows(
+            self.noise,
+            self.input_gain,
+            offset,
+            gains,
+            seeds,
+            sample_time,
+            n,
+            window,
+            self.noise_duration,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dictionary."""
@@ -353,15 +383,18 @@ class ClosedLoopProtocol:
         self, offset: float, gains: list[float], seeds: list[int], sample_time: float
     ) -> NDArray[np.float64]:
         """Open-loop part of the input (V) for every (gain, seed) pair: offset plus noise."""
-        n = _index(self.end, sample_time)
-        n0, n1 = _index(self.noise_start, sample_time), _index(self.noise_end, sample_time)
-        rows = np.full((len(gains), n), float(offset))
-        dur = self.noise_end - self.noise_start
-        for r, (g, s) in enumerate(zip(gains, seeds)):
-            eta = trial_noise(self.noise, sample_time, dur, s)
-            m = min(len(eta), n1 - n0)
-            rows[r, n0 : n0 + m] += self.input_gain * g * eta[:m]
-        return rows
+        window = (_index(self.noise_start, sample_time), _index(self.noise_end, sample_time))
+        return _noisy_rows(
+            self.noise,
+            self.input_gain,
+            offset,
+            gains,
+            seeds,
+            sample_time,
+            _index(self.end, sample_time),
+            window,
+            self.noise_end - self.noise_start,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dictionary."""

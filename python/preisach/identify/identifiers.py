@@ -31,9 +31,9 @@ from ..model import PreisachModel
 from ..recording import Recording, RecordingsInput, as_recordings, recording_labels
 from .delay import DelayEstimate, estimate_delay, shift_output
 from .fod_finder import FODData, find_fod_curves
-from .lsq import identify_lsq_core, weights_matrix
+from .lsq import LsqDetails, identify_lsq_core, weights_matrix
 from .report import DataUsage, IdentificationReport, ProjectionSummary, Residuals
-from .surface_fit import fit_sqrt_surface
+from .surface_fit import SurfaceFitResult, fit_sqrt_surface
 
 __all__ = [
     "DataUsage",
@@ -345,6 +345,58 @@ def _output_range(fd: FODData, recs: Sequence[Recording]) -> float:
     return float(np.ptp(y)) if y.size else 1.0
 
 
+def _report(
+    method: str,
+    model: PreisachModel,
+    *,
+    recs: list[Recording],
+    names: list[str],
+    usage: list[DataUsage],
+    warnings: list[str],
+    initial_state: InitialState,
+    delay: float,
+    estimate: DelayEstimate | None,
+    t0: float,
+    fod: FODData | None = None,
+    surface_fit: SurfaceFitResult | None = None,
+    projection: ProjectionSummary | None = None,
+    lsq: LsqDetails | None = None,
+    native_delay: int = 0,
+) -> IdentificationReport:
+    """Score the model and assemble the report every identifier returns.
+
+    The residuals on the recordings (their output paired ``native_delay`` samples later; the
+    FOD identifiers' recordings are shifted already), at the FOD nodes when ``fod`` is given,
+    the negative cells, the units, and the wall time since ``t0``.
+    """
+    node_res = None
+    if fod is not None:
+        node_res = _node_residuals(model, fod, _output_range(fod, recs))
+    # lsq reports the inexact-state recordings itself (usage notes)
+    res, w_res = _recording_residuals(
+        model, recs, names, initial_state, native_delay, state_warnings=lsq is None
+    )
+    units = _units(recs)
+    return IdentificationReport(
+        method=method,
+        model=model,
+        data=usage,
+        residuals=res,
+        node_residuals=node_res,
+        warnings=warnings + w_res,
+        fod=fod,
+        surface_fit=surface_fit,
+        projection=projection,
+        lsq=lsq,
+        negative_cells=_negative_cells(model),
+        elapsed=time.perf_counter() - t0,
+        input_units=units["input_units"],
+        output_units=units["output_units"],
+        delay=delay,
+        delay_estimate=estimate,
+    )
+
+
 # ------------------------------------------------------------------------------------------
 # public functions
 # ------------------------------------------------------------------------------------------
@@ -506,25 +558,20 @@ def identify_fod(
             f"{_units(recs)['output_units']}): the "
             "model is not in Mp; project=True gives the nearest model that is"
         )
-    rng = _output_range(fd, recs)
-    node_res = _node_residuals(model, fd, rng)
-    res, w2 = _recording_residuals(model, recs, names, initial_state, 0)
     model.metadata["delay"] = delay_used
-    return IdentificationReport(
-        method="fod",
-        model=model,
-        data=usage,
-        residuals=res,
-        node_residuals=node_res,
-        warnings=warnings + w2,
+    return _report(
+        "fod",
+        model,
+        recs=recs,
+        names=names,
+        usage=usage,
+        warnings=warnings,
+        initial_state=initial_state,
+        delay=delay_used,
+        estimate=estimate,
+        t0=t0,
         fod=fd,
         projection=proj,
-        negative_cells=neg,
-        elapsed=time.perf_counter() - t0,
-        input_units=_units(recs)["input_units"],
-        output_units=_units(recs)["output_units"],
-        delay=delay_used,
-        delay_estimate=estimate,
     )
 
 
@@ -596,25 +643,20 @@ def identify_surface(
             f"{neg} cells of the tabulated surface have negative mass (the thesis "
             "reports such cells for its 2 and 4 Hz surfaces)"
         )
-    rng = _output_range(fd, recs)
-    node_res = _node_residuals(model, fd, rng)
-    res, w2 = _recording_residuals(model, recs, names, initial_state, 0)
     model.metadata["delay"] = delay_used
-    return IdentificationReport(
-        method="surface",
-        model=model,
-        data=usage,
-        residuals=res,
-        node_residuals=node_res,
-        warnings=warnings + w2,
+    return _report(
+        "surface",
+        model,
+        recs=recs,
+        names=names,
+        usage=usage,
+        warnings=warnings,
+        initial_state=initial_state,
+        delay=delay_used,
+        estimate=estimate,
+        t0=t0,
         fod=fd,
         surface_fit=fit,
-        negative_cells=neg,
-        elapsed=time.perf_counter() - t0,
-        input_units=_units(recs)["input_units"],
-        output_units=_units(recs)["output_units"],
-        delay=delay_used,
-        delay_estimate=estimate,
     )
 
 
@@ -744,24 +786,18 @@ def identify_lsq(
         )
         for span in spans
     ]
-    # lsq reports the inexact-state recordings itself (usage notes)
-    res, w_res = _recording_residuals(
-        model, recs, names, initial_state, int(native), state_warnings=False
-    )
-    warnings += w_res
-    neg = _negative_cells(model)
-    return IdentificationReport(
-        method="lsq",
-        model=model,
-        data=usage,
-        residuals=res,
+    return _report(
+        "lsq",
+        model,
+        recs=recs,
+        names=names,
+        usage=usage,
         warnings=warnings,
-        lsq=details,
-        projection=proj,
-        negative_cells=neg,
-        elapsed=time.perf_counter() - t0,
-        input_units=_units(recs)["input_units"],
-        output_units=_units(recs)["output_units"],
+        initial_state=initial_state,
         delay=delay_used,
-        delay_estimate=estimate,
+        estimate=estimate,
+        t0=t0,
+        projection=proj,
+        lsq=details,
+        native_delay=int(native),
     )

@@ -10,6 +10,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .._figures import figure as _figure
 from .._figures import figure_and_axes as _figure_and_axes
@@ -225,35 +226,54 @@ def plot_sweep(result: SweepResult, *, fig: Figure | None = None) -> Figure:
     """
     from ..experiments.sweep import _stats
 
-    fs = result.frequencies
-    fig = _figure(fig, figsize=(4.2 * len(fs), 3.8))
-    axes = np.atleast_1d(fig.subplots(1, len(fs), squeeze=False)[0])
-    for ax, f in zip(axes, fs):
+    fig, axes = _gain_panels(result, fig)
+    gs = np.array(result.gains)
+    for ax, f in zip(axes, result.frequencies):
         for j, k in enumerate(result.kinds):
-            gs = np.array(result.gains)
             st = [_stats(result.values(f, k, g)) for g in gs]
             mean = np.array([s["mean"] for s in st])
             sd = np.array([s["std"] for s in st])
-            ax.errorbar(
-                gs + (j - 1) * 0.06,
-                mean,
-                yerr=sd,
-                fmt=_MARKERS[k],
-                color=_COLORS[k],
-                ms=5,
-                capsize=2,
-                lw=0.8,
-                label=f"psi_{k}",
-            )
+            _bars(ax, gs + (j - 1) * 0.06, mean, sd, k, f"psi_{k}")
         if result.experiment == "drift":
             ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_title(f"f = {f:g} Hz")
-        ax.set_xlabel("noise gain K_n (1)")
-        ax.grid(True, alpha=0.3)
     axes[0].set_ylabel(_LABEL[result.experiment])
     axes[0].legend(fontsize="small")
     fig.tight_layout()
     return fig
+
+
+def _gain_panels(result: SweepResult, fig: Figure | None) -> tuple[Figure, list[Axes]]:
+    """One panel per frequency, noise gain on the x axis."""
+    fs = result.frequencies
+    fig = _figure(fig, figsize=(4.2 * len(fs), 3.8))
+    axes = list(fig.subplots(1, len(fs), squeeze=False)[0])
+    for ax, f in zip(axes, fs):
+        ax.set_title(f"f = {f:g} Hz")
+        ax.set_xlabel("noise gain K_n (1)")
+        ax.grid(True, alpha=0.3)
+    return fig, axes
+
+
+def _bars(
+    ax: Axes,
+    x: NDArray[np.float64],
+    mean: NDArray[np.float64],
+    sd: NDArray[np.float64],
+    state: str,
+    label: str,
+) -> None:
+    """Means with one-standard-deviation bars in the state's marker and colour."""
+    ax.errorbar(
+        x,
+        mean,
+        yerr=sd,
+        fmt=_MARKERS[state],
+        color=_COLORS[state],
+        ms=5,
+        capsize=2,
+        lw=0.8,
+        label=label,
+    )
 
 
 def plot_drift_summary(result: SweepResult, *, fig: Figure | None = None) -> Figure:
@@ -284,31 +304,16 @@ def plot_paired_differences(result: SweepResult, *, fig: Figure | None = None) -
     """
     if not {"n", "a", "d"} <= set(result.kinds):
         raise ValueError("plot_differences: needs the states n, a and d")
-    fs = result.frequencies
-    fig = _figure(fig, figsize=(4.2 * len(fs), 3.8))
-    axes = np.atleast_1d(fig.subplots(1, len(fs), squeeze=False)[0])
+    fig, axes = _gain_panels(result, fig)
     mag = np.abs if result.experiment == "drift" else (lambda v: v)
-    for ax, f in zip(axes, fs):
-        gs = np.array(result.gains)
+    gs = np.array(result.gains)
+    for ax, f in zip(axes, result.frequencies):
         for j, x in enumerate(("a", "d")):
             diffs = [mag(result.values(f, x, g)) - mag(result.values(f, "n", g)) for g in gs]
             mean = np.array([d.mean() for d in diffs])
             sd = np.array([d.std(ddof=1) if d.size > 1 else np.nan for d in diffs])
-            ax.errorbar(
-                gs + (j - 0.5) * 0.08,
-                mean,
-                yerr=sd,
-                fmt=_MARKERS[x],
-                color=_COLORS[x],
-                ms=5,
-                capsize=2,
-                lw=0.8,
-                label=f"psi_{x} - psi_n",
-            )
+            _bars(ax, gs + (j - 0.5) * 0.08, mean, sd, x, f"psi_{x} - psi_n")
         ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_title(f"f = {f:g} Hz")
-        ax.set_xlabel("noise gain K_n (1)")
-        ax.grid(True, alpha=0.3)
     axes[0].set_ylabel(
         "paired difference |drift| (V)"
         if result.experiment == "drift"
