@@ -572,13 +572,8 @@ class _PropertyTest:
         return property_test_html(self)
 
     def _summary(self) -> dict[str, Any]:
-        return {
-            "max_difference": self.max_difference,
-            "max_pct": self.max_pct,
-            "passed": self.passed,
-            "tolerance": self.tolerance,
-            "output_range": self.output_range,
-        }
+        keys = ("max_difference", "max_pct", "passed", "tolerance", "output_range")
+        return {k: getattr(self, k) for k in keys}
 
 
 @dataclass

@@ -136,29 +136,25 @@ def control_effort(
     return float(np.sqrt(np.sum(d * d))), ubar
 
 
-def _noisy_rows(
-    noise: NoiseSpec,
-    input_gain: float,
-    offset: float,
+def _add_noise(
+    rows: NDArray[np.float64],
+    protocol: DriftProtocol | ClosedLoopProtocol,
     gains: list[float],
     seeds: list[int],
     sample_time: float,
-    n: int,
     window: tuple[int, int],
     duration: float,
-) -> NDArray[np.float64]:
-    """Input rows (V), one per (gain, seed): ``offset``, plus the seed's noise on ``window``.
+) -> None:
+    """Add each (gain, seed)'s noise to its row of input samples (V), on ``window``.
 
-    The noise (``duration`` s of :func:`trial_noise`) is scaled by ``input_gain * gain`` and
-    added from sample ``window[0]`` on, cut at ``window[1]``.
+    ``duration`` s of the seed's :func:`trial_noise`, scaled by ``input_gain * gain``, from
+    sample ``window[0]`` on, cut at ``window[1]``.
     """
     start, stop = window
-    rows = np.full((len(gains), n), float(offset))
     for r, (g, s) in enumerate(zip(gains, seeds)):
-        eta = trial_noise(noise, sample_time, duration, s)
+        eta = trial_noise(protocol.noise, sample_time, duration, s)
         m = min(len(eta), stop - start)
-        rows[r, start : start + m] += input_gain * g * eta[:m]
-    return rows
+        rows[r, start : start + m] += protocol.input_gain * g * eta[:m]
 
 
 @lru_cache(maxsize=256)
@@ -285,19 +281,11 @@ class DriftProtocol:
         self, offset: float, gains: list[float], seeds: list[int], sample_time: float
     ) -> NDArray[np.float64]:
         """Input rows (V) of the test segment for every (gain, seed) pair, in that order."""
-        n = _index(self.duration, sample_time)
-        window = (_index(self.hold, sample_time), n)
-        return _noisy_rows(
-            self.noise,
-            self.input_gain,
-            offset,
-            gains,
-            seeds,
-            sample_time,
-            n,
-            window,
-            self.noise_duration,
-        )
+        ts = sample_time
+        n = _index(self.duration, ts)
+        rows = np.full((len(gains), n), float(offset))
+        _add_noise(rows, self, gains, seeds, ts, (_index(self.hold, ts), n), self.noise_duration)
+        return rows
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dictionary."""
@@ -383,18 +371,11 @@ class ClosedLoopProtocol:
         self, offset: float, gains: list[float], seeds: list[int], sample_time: float
     ) -> NDArray[np.float64]:
         """Open-loop part of the input (V) for every (gain, seed) pair: offset plus noise."""
-        window = (_index(self.noise_start, sample_time), _index(self.noise_end, sample_time))
-        return _noisy_rows(
-            self.noise,
-            self.input_gain,
-            offset,
-            gains,
-            seeds,
-            sample_time,
-            _index(self.end, sample_time),
-            window,
-            self.noise_end - self.noise_start,
-        )
+        ts = sample_time
+        rows = np.full((len(gains), _index(self.end, ts)), float(offset))
+        window = (_index(self.noise_start, ts), _index(self.noise_end, ts))
+        _add_noise(rows, self, gains, seeds, ts, window, self.noise_end - self.noise_start)
+        return rows
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly dictionary."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, Union
 
 import numpy as np
@@ -345,42 +346,67 @@ def _output_range(fd: FODData, recs: Sequence[Recording]) -> float:
     return float(np.ptp(y)) if y.size else 1.0
 
 
+@dataclass
+class _Source:
+    """The data an identifier fitted: recordings (delay applied), their labels and usage.
+
+    ``native_delay``: samples the residuals pair the output later (least squares applies an
+    integer delay itself; the FOD identifiers' recordings are shifted already).
+    """
+
+    recs: list[Recording]
+    names: list[str]
+    usage: list[DataUsage]
+    initial_state: InitialState
+    delay: float
+    estimate: DelayEstimate | None
+    native_delay: int = 0
+
+
+def _fod_source(
+    data: Data,
+    levels: ArrayLike | int | None,
+    delay: Delay,
+    initial_state: InitialState,
+    finder_options: dict[str, FinderOption],
+) -> tuple[FODData, _Source]:
+    """Prepare the FOD identifiers' data: delay applied, FOD curves found and merged."""
+    check_policy(initial_state)
+    shifted, delay_used, estimate = _resolve_delay(data, delay, initial_state)
+    fd, recs, names, usage = _fod_data(shifted, levels, finder_options)
+    return fd, _Source(recs, names, usage, initial_state, delay_used, estimate)
+
+
 def _report(
     method: str,
     model: PreisachModel,
-    *,
-    recs: list[Recording],
-    names: list[str],
-    usage: list[DataUsage],
+    src: _Source,
     warnings: list[str],
-    initial_state: InitialState,
-    delay: float,
-    estimate: DelayEstimate | None,
     t0: float,
+    *,
     fod: FODData | None = None,
     surface_fit: SurfaceFitResult | None = None,
     projection: ProjectionSummary | None = None,
     lsq: LsqDetails | None = None,
-    native_delay: int = 0,
 ) -> IdentificationReport:
     """Score the model and assemble the report every identifier returns.
 
-    The residuals on the recordings (their output paired ``native_delay`` samples later; the
-    FOD identifiers' recordings are shifted already), at the FOD nodes when ``fod`` is given,
-    the negative cells, the units, and the wall time since ``t0``.
+    The residuals on the recordings, at the FOD nodes when ``fod`` is given, the negative
+    cells, the units, and the wall time since ``t0``.
     """
+    recs = src.recs
     node_res = None
     if fod is not None:
         node_res = _node_residuals(model, fod, _output_range(fod, recs))
     # lsq reports the inexact-state recordings itself (usage notes)
     res, w_res = _recording_residuals(
-        model, recs, names, initial_state, native_delay, state_warnings=lsq is None
+        model, recs, src.names, src.initial_state, src.native_delay, state_warnings=lsq is None
     )
     units = _units(recs)
     return IdentificationReport(
         method=method,
         model=model,
-        data=usage,
+        data=src.usage,
         residuals=res,
         node_residuals=node_res,
         warnings=warnings + w_res,
@@ -392,8 +418,8 @@ def _report(
         elapsed=time.perf_counter() - t0,
         input_units=units["input_units"],
         output_units=units["output_units"],
-        delay=delay,
-        delay_estimate=estimate,
+        delay=src.delay,
+        delay_estimate=src.estimate,
     )
 
 
@@ -517,9 +543,7 @@ def identify_fod(
     t0 = time.perf_counter()
     if gaps not in ("fill", "raise"):
         raise ValueError(f"gaps: expected 'fill' or 'raise', got {gaps!r}")
-    check_policy(initial_state)
-    data, delay_used, estimate = _resolve_delay(data, delay, initial_state)
-    fd, recs, names, usage = _fod_data(data, levels, finder_options)
+    fd, src = _fod_source(data, levels, delay, initial_state, finder_options)
     table, filled, n_col0, n_ymin, rows = _core.mayergoyz(fd.levels, fd.y_grid, gaps)
     warnings = _fod_warnings(fd)
     if len(filled):
@@ -555,24 +579,11 @@ def identify_fod(
         w = np.tril(model.cell_weights())
         warnings.append(
             f"{neg} cells have negative mass (sum {float(w[w < 0].sum()):.4g} "
-            f"{_units(recs)['output_units']}): the "
+            f"{_units(src.recs)['output_units']}): the "
             "model is not in Mp; project=True gives the nearest model that is"
         )
-    model.metadata["delay"] = delay_used
-    return _report(
-        "fod",
-        model,
-        recs=recs,
-        names=names,
-        usage=usage,
-        warnings=warnings,
-        initial_state=initial_state,
-        delay=delay_used,
-        estimate=estimate,
-        t0=t0,
-        fod=fd,
-        projection=proj,
-    )
+    model.metadata["delay"] = src.delay
+    return _report("fod", model, src, warnings, t0, fod=fd, projection=proj)
 
 
 def identify_surface(
@@ -628,8 +639,7 @@ def identify_surface(
     check_policy(initial_state)
     if y_min_source not in ("column_mean", "corner"):
         raise ValueError(f"y_min_source: expected 'column_mean' or 'corner', got {y_min_source!r}")
-    data, delay_used, estimate = _resolve_delay(data, delay, initial_state)
-    fd, recs, names, usage = _fod_data(data, levels, finder_options)
+    fd, src = _fod_source(data, levels, delay, initial_state, finder_options)
     fit = fit_sqrt_surface(
         fd.levels, fd.y_grid, frequency=frequency, refine=refine, y_min_source=y_min_source
     )
@@ -643,21 +653,8 @@ def identify_surface(
             f"{neg} cells of the tabulated surface have negative mass (the thesis "
             "reports such cells for its 2 and 4 Hz surfaces)"
         )
-    model.metadata["delay"] = delay_used
-    return _report(
-        "surface",
-        model,
-        recs=recs,
-        names=names,
-        usage=usage,
-        warnings=warnings,
-        initial_state=initial_state,
-        delay=delay_used,
-        estimate=estimate,
-        t0=t0,
-        fod=fd,
-        surface_fit=fit,
-    )
+    model.metadata["delay"] = src.delay
+    return _report("surface", model, src, warnings, t0, fod=fd, surface_fit=fit)
 
 
 def identify_lsq(
@@ -786,18 +783,5 @@ def identify_lsq(
         )
         for span in spans
     ]
-    return _report(
-        "lsq",
-        model,
-        recs=recs,
-        names=names,
-        usage=usage,
-        warnings=warnings,
-        initial_state=initial_state,
-        delay=delay_used,
-        estimate=estimate,
-        t0=t0,
-        projection=proj,
-        lsq=details,
-        native_delay=int(native),
-    )
+    src = _Source(recs, names, usage, initial_state, delay_used, estimate, int(native))
+    return _report("lsq", model, src, warnings, t0, projection=proj, lsq=details)
