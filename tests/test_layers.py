@@ -84,7 +84,7 @@ PACKAGE = ROOT / "python" / "preisach"
 #: 0 core and utilities, 1 model level (data types, simulation, rig), 2 what uses models
 #: (identification, verification, experiments, compensation), 3 diagnosis, 4 the faces
 #: (command line, demo, figures, trial files, studies).  Any ``*.cli`` module is layer 4;
-#: a private top-level module (``preisach._io``, ``preisach._blas``...) is a core utility.
+#: a private top-level module (``preisach._io``, ``preisach._figures``...) is a core utility.
 LAYERS: dict[str, int] = {
     "preisach._core": 0,
     "preisach.errors": 0,

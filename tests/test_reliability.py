@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import preisach
 import pytest
+from _trial_files import ANY_MISSED, SIM_HEAD
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from preisach import PreisachModel, Recording
@@ -35,23 +36,7 @@ FUZZ = settings(
     max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 
-HEAD = """
-[trial]
-sample_time = 0.001
-[device]
-kind = "sim"
-[output]
-name = "V_in"
-channel = 1
-range = [-10.0, 10.0]
-calibration = "ss15-b"
-[input]
-name = "V_out"
-channel = 1
-range = [-5.0, 5.0]
-[safety]
-max_consecutive_missed = -1
-"""
+HEAD = SIM_HEAD + ANY_MISSED
 
 
 def _env() -> dict[str, str]:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _trial_files import SIM_HEAD
 from preisach import Recording, trials
 from preisach.errors import TrialFileError
 from preisach.identify import find_fod_curves
@@ -19,21 +20,7 @@ from preisach.trials import _main, add_parser, check_trial, load_trial, run_tria
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "trials"
 KINDS = {"initialise", "fod_sweep", "wiping_out", "cml", "drive", "noise", "pi", "hold"}
 
-HEAD = """
-[trial]
-sample_time = 0.001
-[device]
-kind = "sim"
-[output]
-name = "V_in"
-channel = 1
-range = [-10.0, 10.0]
-calibration = "ss15-b"
-[input]
-name = "V_out"
-channel = 1
-range = [-5.0, 5.0]
-"""
+HEAD = SIM_HEAD
 
 
 def write(tmp_path, text, name="t.toml"):

@@ -620,6 +620,18 @@ def identify_lsq_core(
             return _solve(prep, levels, lam, auto, folds, nonnegative, initial_state, delay, bar)
 
 
+def nearest_in_log(tried: Iterable[float], lam: float) -> float | None:
+    """Return the weight in ``tried`` nearest to ``lam`` on a log scale (``None``: none tried).
+
+    A fit at ``lam`` starts from that one's solution (warm start); zero counts as 1e-300.
+    """
+    return min(
+        tried,
+        key=lambda x: abs(math.log10(x + 1e-300) - math.log10(lam + 1e-300)),
+        default=None,
+    )
+
+
 def _solve(
     prep: _Prepared,
     levels: NDArray[np.float64],
@@ -650,11 +662,7 @@ def _solve(
             lv = float(lv)
             if lv in sse:
                 continue
-            near = min(
-                free_sets,
-                key=lambda x: abs(math.log10(x + 1e-300) - math.log10(lv + 1e-300)),
-                default=None,
-            )
+            near = nearest_in_log(free_sets, lv)
             warm = free_sets[near] if near is not None else [None] * folds
             row = np.zeros(folds)
             frees: list[NDArray[np.bool_] | None] = []

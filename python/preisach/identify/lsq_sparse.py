@@ -42,6 +42,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from .. import _core
 from ..initial_state import InitialState, initial_state_for
 from ..recording import SampledData
+from .lsq import nearest_in_log
 from .spans import FittedSpan, fitted_spans
 
 __all__ = [
@@ -429,11 +430,7 @@ def solve_sparse(
             lam = float(lam)
             if lam in sse:
                 continue
-            near = min(
-                full,
-                key=lambda v: abs(math.log10(v + 1e-300) - math.log10(lam + 1e-300)),
-                default=None,
-            )
+            near = nearest_in_log(full, lam)
             x_all = solve(None, lam, None if near is None else full[near])
             full[lam] = x_all
             row = np.zeros(folds)
