@@ -34,7 +34,10 @@ import secrets
 import stat
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["atomic_write", "check_target", "save_figure", "write_json", "write_text"]
 
@@ -221,7 +224,7 @@ def write_json(path: PathLike, obj: Any, *, what: str = "JSON file", **dumps_kwa
     return write_text(path, text, what=what)
 
 
-def save_figure(fig: Any, path: PathLike, **savefig_kwargs: Any) -> Path:
+def save_figure(fig: Figure, path: PathLike, **savefig_kwargs: Any) -> Path:
     """Save a matplotlib figure atomically (the format from the suffix, as ``savefig`` does).
 
     Parameters

@@ -32,6 +32,7 @@ from .plant import ModelPlant, Plant, ss15_plants, thesis_sample_time
 from .protocol import THESIS_GAINS, ClosedLoopProtocol, DriftProtocol
 
 if TYPE_CHECKING:  # pragma: no cover
+    from distributed import Client
     from matplotlib.figure import Figure
 
 __all__ = ["EXPERIMENTS", "SweepResult", "regulation_sweep", "state_slopes"]
@@ -446,7 +447,7 @@ def regulation_sweep(
     trace: tuple[float, int | None] | None = (1.6, None),
     slope_gain: float = 1.6,
     scheduler: str | None = "serial",
-    client: Any = None,
+    client: Client | None = None,
     store: str | os.PathLike[str] | None = None,
     progress: bool = True,
 ) -> SweepResult:

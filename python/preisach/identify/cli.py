@@ -19,17 +19,22 @@ import argparse
 import sys
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .._io import save_figure, write_json
 from .identifiers import MAX_FOD_LEVELS
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+    from ..recording import Recording
 
 __all__ = ["add_parser"]
 
 _POLICIES = ("burn-in", "negative", "positive", "anhysteretic")
 
 
-def _load_recordings(paths: list[str]) -> list[Any]:
+def _load_recordings(paths: list[str]) -> list[Recording]:
     from ..recording import Recording
 
     recs = []
@@ -49,7 +54,7 @@ def _write_json(path: str | None, obj: dict[str, Any]) -> None:
         print(f"wrote {path}")
 
 
-def _save_figure(path: str | None, fig: Any) -> None:
+def _save_figure(path: str | None, fig: Figure) -> None:
     if path:
         save_figure(fig, path, dpi=110)
         print(f"wrote {path}")

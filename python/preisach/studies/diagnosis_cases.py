@@ -79,7 +79,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Union
+from typing import TYPE_CHECKING, Any, Callable, Union
 
 import numpy as np
 from numpy.typing import NDArray
@@ -90,6 +90,9 @@ from ..model import PreisachModel, State
 from ..noise import uniform_filtered_noise
 from ..recording import Recording
 from ..waveforms import cml_input, fod_sweep, legs, wiping_out_input
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..diagnose import DiagnosisReport
 
 __all__ = ["EFFECT_KINDS", "Case", "case_inputs", "make_case", "physical_checks", "run_case"]
 
@@ -334,7 +337,7 @@ class Case:
     truth: dict[str, Any] = field(default_factory=dict)
     #: The simulated device as ``(truth, strength)`` (set by :func:`make_case`, not saved by
     #: :meth:`save`): :func:`physical_checks` measures the true effect with it on test inputs.
-    device: Any = field(default=None, repr=False, compare=False)
+    device: tuple[_Truth | _RigTruth, float] | None = field(default=None, repr=False, compare=False)
 
     def identify(self, levels: int | None = None) -> PreisachModel:
         """Identify a model from the sweep (Mayergoyz: :func:`preisach.identify.identify_fod`).
@@ -662,7 +665,7 @@ def _feedback_slope(f: Callable[[Array], Array], model: PreisachModel) -> float:
     return float((v[1] - v[0]) / (y[1] - y[0]))
 
 
-def physical_checks(case: Case, report: Any) -> dict[str, dict[str, float]]:
+def physical_checks(case: Case, report: DiagnosisReport) -> dict[str, dict[str, float]]:
     """Physically meaningful quantities of the verdict's effect: fitted and true values.
 
     The forms of the truth and the candidates differ (see the module docstring), so their
@@ -718,9 +721,10 @@ def physical_checks(case: Case, report: Any) -> dict[str, dict[str, float]]:
         out[name] = {"fitted": float(f), "truth": float(t)}
 
     if kind == "delay":
-        put("lag", p["tau"], truth.describe(strength)["lag"] if rig else strength)
+        lag = truth.describe(strength)["lag"] if isinstance(truth, _RigTruth) else strength
+        put("lag", p["tau"], lag)
     elif kind == "structural_resonance":
-        if rig:
+        if isinstance(truth, _RigTruth):
             mode = truth.blocks(strength, 0)[1][0]
             f_n, zeta, part = mode["frequency"], mode["damping"], 1.0
         else:

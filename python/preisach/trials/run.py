@@ -165,7 +165,7 @@ def _ramp_file(out: Path, number: int, written: set[Path], overwrite: bool) -> P
 
 
 def _ramp_to_zero(
-    dev: Any,
+    dev: daq.Device,
     plan: TrialPlan,
     safety: daq.SafetyLimits,
     file: Path,
@@ -292,7 +292,7 @@ def run_trial_file(
 
 def _run(
     plan: TrialPlan,
-    dev: Any,
+    dev: daq.Device,
     out: Path,
     stops: StopSignals,
     realtime: bool,
