@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 import pytest
+from _lsq_data import grid_model as _grid_model
+from _lsq_data import rich_input as _rich_input
 from matplotlib.figure import Figure
 from preisach import PreisachModel, Recording
 from preisach.identify import (
@@ -277,18 +279,6 @@ def test_weight_density_and_project_nonnegative_on_a_model():
 
 
 # -- least squares details -------------------------------------------------------------------
-def _grid_model(levels: np.ndarray, seed: int) -> PreisachModel:
-    rng = np.random.default_rng(seed)
-    w = np.tril(rng.uniform(0.01, 0.1, (levels.size - 1, levels.size - 1)))
-    return PreisachModel.from_weights(levels, w, y_min=-0.7)
-
-
-def _rich_input(n: int, seed: int, step: float = 0.08) -> np.ndarray:
-    """A reflected random walk on [-1, 1] that touches both ends: it excites every cell."""
-    rng = np.random.default_rng(seed)
-    return np.clip(1.1 * np.sin(np.cumsum(rng.normal(0.0, step, n))), -1.0, 1.0)
-
-
 def test_lsq_recovers_a_table_exactly_from_noise_free_rich_data():
     lv = np.linspace(-1.0, 1.0, 9)
     truth = _grid_model(lv, 1)

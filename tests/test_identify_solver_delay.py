@@ -7,23 +7,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _lsq_data import grid_model as _grid_model
+from _lsq_data import rich_input as _rich_input
 from preisach import PreisachModel, Recording
 from preisach.identify import identify_fod, identify_lsq
 from preisach.identify.delay import estimate_delay, shift_output
 from preisach.identify.lsq import roughness_matrix
 from preisach.identify.lsq_sparse import difference_matrix, prolongation, roughness_sparse
 from preisach.waveforms import fod_sweep
-
-
-def _grid_model(levels: np.ndarray, seed: int) -> PreisachModel:
-    rng = np.random.default_rng(seed)
-    w = np.tril(rng.uniform(0.01, 0.1, (levels.size - 1, levels.size - 1)))
-    return PreisachModel.from_weights(levels, w, y_min=-0.7)
-
-
-def _rich_input(n: int, seed: int, step: float = 0.08) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    return np.clip(1.1 * np.sin(np.cumsum(rng.normal(0.0, step, n))), -1.0, 1.0)
 
 
 def _record(model: PreisachModel, u: np.ndarray, noise: float, seed: int, **meta) -> Recording:
