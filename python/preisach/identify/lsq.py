@@ -226,6 +226,29 @@ def _nodes(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     return np.tril_indices(n, -1)
 
 
+def _cell_grid(
+    levels: ArrayLike,
+) -> tuple[
+    int,
+    NDArray[np.float64],
+    float,
+    tuple[NDArray[np.intp], NDArray[np.intp]],
+    NDArray[np.intp],
+]:
+    """Return what the roughness operators index: ``(m, h, hbar, cells, index)``.
+
+    ``m`` cells per side, the level spacings ``h`` (V) and their mean ``hbar``, the cells
+    ``(ci, cj)`` (:func:`_cells`), and ``index[i, j]``: the column of cell ``(i, j)`` (-1
+    above the diagonal).
+    """
+    lv = np.asarray(levels, dtype=float)
+    m = lv.size - 1
+    cells = _cells(lv.size)
+    index = -np.ones((m, m), dtype=np.intp)
+    index[cells] = np.arange(cells[0].size)
+    return m, np.diff(lv), float((lv[-1] - lv[0]) / m), cells, index
+
+
 def cumulative_matrix(n: int) -> NDArray[np.float64]:
     """``C`` with ``E_nodes = C @ w_cells``: ``E(a, b) = sum of w(k, l), b <= l <= k <= a - 1``."""
     a, b = _nodes(n)
@@ -274,14 +297,7 @@ def roughness_matrix(levels: ArrayLike) -> NDArray[np.float64]:
     ndarray, shape (rows, n (n - 1) / 2)
 
     """
-    lv = np.asarray(levels, dtype=float)
-    n = lv.size
-    m = n - 1
-    h = np.diff(lv)
-    hbar = (lv[-1] - lv[0]) / m
-    ci, cj = _cells(n)
-    index = -np.ones((m, m), dtype=np.intp)
-    index[ci, cj] = np.arange(ci.size)
+    m, h, hbar, (ci, cj), index = _cell_grid(levels)
 
     def dens(i: int, j: int) -> float:
         return float(hbar / h[i] if i == j else hbar * hbar / (h[i] * h[j]))

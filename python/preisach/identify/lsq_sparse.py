@@ -42,7 +42,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve
 from .. import _core
 from ..initial_state import InitialState, initial_state_for
 from ..recording import SampledData
-from .lsq import nearest_in_log
+from .lsq import _cell_grid, _cells, _nodes, nearest_in_log
 from .spans import FittedSpan, fitted_spans
 
 __all__ = [
@@ -56,16 +56,6 @@ __all__ = [
 COARSE_LEVELS = 21
 
 
-def _cells(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    i, j = np.tril_indices(n - 1)
-    return i, j
-
-
-def _nodes(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    a, b = np.tril_indices(n, -1)
-    return a, b
-
-
 def roughness_sparse(levels: NDArray[np.float64]) -> sp.csr_matrix:
     """Roughness operator ``R`` on the cell masses, sparse (rows in output units).
 
@@ -73,14 +63,7 @@ def roughness_sparse(levels: NDArray[np.float64]) -> sp.csr_matrix:
     ``v = w / (h_i h_j)`` along alpha and along beta over three off-diagonal cells, and of
     ``kappa = w / h_i`` along the diagonal, times ``hbar^2`` (``hbar`` for kappa).
     """
-    lv = np.asarray(levels, dtype=float)
-    n = lv.size
-    m = n - 1
-    h = np.diff(lv)
-    hbar = (lv[-1] - lv[0]) / m
-    ci, cj = _cells(n)
-    index = -np.ones((m, m), dtype=np.intp)
-    index[ci, cj] = np.arange(ci.size)
+    m, h, hbar, (ci, cj), index = _cell_grid(levels)
     dens = np.where(ci == cj, hbar / h[ci], hbar * hbar / (h[ci] * h[np.minimum(cj, m - 1)]))
     rows: list[NDArray[np.intp]] = []
     cols: list[NDArray[np.intp]] = []
