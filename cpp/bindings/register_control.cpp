@@ -1,6 +1,6 @@
 // Bindings of the PI regulation loop (preisach/control.hpp) and the neutral locus
 // (preisach/neutral.hpp).
-#include "common.hpp"
+#include "closed_loop_common.hpp"
 
 #include <preisach/control.hpp>
 #include <preisach/neutral.hpp>
@@ -11,23 +11,6 @@ using preisach::PIController;
 using preisach::Simulator;
 using preisach::State;
 
-namespace {
-
-ClosedLoopConfig make_config(double setpoint, double kp, double ki, double sample_time, std::size_t average,
-                             std::size_t enable_at, double input_gain) {
-    ClosedLoopConfig c;
-    c.setpoint = setpoint;
-    c.kp = kp;
-    c.ki = ki;
-    c.sample_time = sample_time;
-    c.average = average;
-    c.enable_at = enable_at;
-    c.input_gain = input_gain;
-    c.validate();
-    return c;
-}
-
-}  // namespace
 
 void register_control(py::module_& m) {
     py::class_<PIController>(m, "PIController",
@@ -52,16 +35,10 @@ void register_control(py::module_& m) {
         [](Simulator& sim, const InArray& u_open, double setpoint, double kp, double ki, double sample_time,
            std::size_t average, std::size_t enable_at, double input_gain, const std::string& out_of_range) {
             const auto policy = parse_policy(out_of_range);
-            const ClosedLoopConfig cfg = make_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
-            std::size_t n = 0;
-            const double* pu = as_vector(u_open, "u_open", n);
-            py::array_t<double> u{py::ssize_t(n)}, y{py::ssize_t(n)}, uc{py::ssize_t(n)};
-            double *a = u.mutable_data(), *b = y.mutable_data(), *c = uc.mutable_data();
-            {
-                py::gil_scoped_release release;
+            const ClosedLoopConfig cfg = make_loop_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
+            return closed_loop_arrays(u_open, [&](const double* pu, double* a, double* b, double* c, std::size_t n) {
                 preisach::run_closed_loop(sim, pu, a, b, c, n, cfg, policy);
-            }
-            return py::make_tuple(u, y, uc);
+            });
         },
         py::arg("simulator"), py::arg("u_open"), py::arg("setpoint"), py::arg("kp"), py::arg("ki"),
         py::arg("sample_time"), py::arg("average") = 1, py::arg("enable_at") = 0, py::arg("input_gain") = 1.0,
@@ -74,28 +51,41 @@ void register_control(py::module_& m) {
         [](const EverettTable& t, const std::vector<State>& states, const InArray& u_open, double setpoint, double kp,
            double ki, double sample_time, std::size_t average, std::size_t enable_at, double input_gain,
            const std::string& out_of_range, unsigned threads) {
-            if (u_open.ndim() != 2)
-                throw std::invalid_argument("u_open: expected a 2-D array (runs x samples), got " +
-                                            std::to_string(u_open.ndim()) + " dimensions");
             const auto policy = parse_policy(out_of_range);
-            const ClosedLoopConfig cfg = make_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
-            const std::size_t rows = std::size_t(u_open.shape(0)), n = std::size_t(u_open.shape(1));
-            py::array_t<double> u({py::ssize_t(rows), py::ssize_t(n)}), y({py::ssize_t(rows), py::ssize_t(n)}),
-                uc({py::ssize_t(rows), py::ssize_t(n)});
-            const double* pu = u_open.data();
-            double *a = u.mutable_data(), *b = y.mutable_data(), *c = uc.mutable_data();
-            std::vector<State> finals;
-            {
-                py::gil_scoped_release release;
-                finals = preisach::run_closed_loop_batch(t, states, pu, a, b, c, rows, n, cfg, policy, threads);
-            }
-            return py::make_tuple(u, y, uc, finals);
+            const ClosedLoopConfig cfg = make_loop_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
+            return closed_loop_batch_arrays(
+                u_open, [&](const double* pu, double* a, double* b, double* c, std::size_t rows, std::size_t n) {
+                    return preisach::run_closed_loop_batch(t, states, pu, a, b, c, rows, n, cfg, policy, threads);
+                },
+                [](const std::vector<State>& finals) { return py::make_tuple(finals); });
         },
         py::arg("table"), py::arg("states"), py::arg("u_open"), py::arg("setpoint"), py::arg("kp"), py::arg("ki"),
         py::arg("sample_time"), py::arg("average") = 1, py::arg("enable_at") = 0, py::arg("input_gain") = 1.0,
         py::arg("out_of_range") = "clamp", py::arg("threads") = 0u,
         "Run the PI loop for every row of u_open from its state on all cores (GIL released); returns "
         "(u, y, uc, final_states).");
+
+    m.def(
+        "closed_loop_chain",
+        [](preisach::blocks::Chain& chain, const InArray& u_open, double u_min, double u_max, double setpoint,
+           double kp, double ki, double sample_time, std::size_t average, std::size_t enable_at, double input_gain) {
+            if (!(u_min < u_max))
+                throw std::invalid_argument("u_min, u_max: need u_min < u_max, got " + std::to_string(u_min) +
+                                            ", " + std::to_string(u_max));
+            if (std::abs(chain.dt() - sample_time) > 1e-9 * sample_time)
+                throw std::invalid_argument("sample_time: " + std::to_string(sample_time) +
+                                            " s differs from the chain's " + std::to_string(chain.dt()) + " s");
+            const ClosedLoopConfig cfg = make_loop_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
+            return closed_loop_arrays(u_open, [&](const double* pu, double* a, double* b, double* c, std::size_t n) {
+                preisach::run_pi_loop([&](double v, std::size_t) { return chain.step(v); }, u_min, u_max, pu, a, b,
+                                      c, n, cfg, preisach::InputPolicy::clamp);
+            });
+        },
+        py::arg("chain"), py::arg("u_open"), py::arg("u_min"), py::arg("u_max"), py::arg("setpoint"), py::arg("kp"),
+        py::arg("ki"), py::arg("sample_time"), py::arg("average") = 1, py::arg("enable_at") = 0,
+        py::arg("input_gain") = 1.0,
+        "The PI loop of closed_loop around a BlockChain (its blocks advance), the applied input clamped to "
+        "[u_min, u_max]; returns (u, y, uc).");
 
     m.def(
         "neutral_locus",

@@ -1,5 +1,5 @@
 // Bindings of the rate-dependent Preisach model (preisach/rate_dependent.hpp).
-#include "common.hpp"
+#include "closed_loop_common.hpp"
 
 #include <preisach/rate_dependent.hpp>
 
@@ -12,20 +12,6 @@ using preisach::State;
 
 namespace {
 
-ClosedLoopConfig rate_config(double setpoint, double kp, double ki, double sample_time, std::size_t average,
-                             std::size_t enable_at, double input_gain) {
-    ClosedLoopConfig c;
-    c.setpoint = setpoint;
-    c.kp = kp;
-    c.ki = ki;
-    c.sample_time = sample_time;
-    c.average = average;
-    c.enable_at = enable_at;
-    c.input_gain = input_gain;
-    c.validate();
-    return c;
-}
-
 py::array_t<double> vec(const std::vector<double>& v) {
     py::array_t<double> a{py::ssize_t(v.size())};
     std::copy(v.begin(), v.end(), a.mutable_data());
@@ -37,11 +23,18 @@ py::array_t<double> vec(const std::vector<double>& v) {
 void register_rate(py::module_& m) {
     py::class_<RateDependentModel>(
         m, "RateDependentModel",
-        "K Everett tables on one grid blended by hat functions in ln(rate) on `knots` (V/s) of the "
-        "first-order filtered input rate (time constant `tau`, s): y = sum_k b_k(v) Gamma_k(psi).")
-        .def(py::init<std::vector<EverettTable>, std::vector<double>, double>(), py::arg("tables"),
-             py::arg("knots"), py::arg("tau"))
+        "K Everett tables on one grid blended by hat functions on `knots` (V/s) of the first-order "
+        "filtered input rate (time constant `tau`, s), interpolating in ln(rate) (scale='log') or in "
+        "rate (scale='linear'): y = sum_k b_k(v) Gamma_k(psi).")
+        .def(py::init([](std::vector<EverettTable> tables, std::vector<double> knots, double tau,
+                         const std::string& scale) {
+                 return RateDependentModel(std::move(tables), std::move(knots), tau,
+                                           preisach::parse_rate_scale(scale));
+             }),
+             py::arg("tables"), py::arg("knots"), py::arg("tau"), py::arg("scale") = "log")
         .def_property_readonly("size", &RateDependentModel::size)
+        .def_property_readonly("scale",
+                               [](const RateDependentModel& r) { return std::string(preisach::rate_scale_name(r.scale())); })
         .def_property_readonly("knots", [](const RateDependentModel& r) { return vec(r.knots()); })
         .def_property_readonly("tau", &RateDependentModel::tau)
         .def_property_readonly("u_min", &RateDependentModel::u_min)
@@ -101,6 +94,24 @@ void register_rate(py::module_& m) {
             return py::make_tuple(d.rising, d.falling);
         });
 
+    py::class_<preisach::blocks::RateStage, preisach::blocks::Block>(
+        m, "RateStage",
+        "A rate-dependent Preisach model as a block (input V clamped to the model range, output V), from "
+        "`state` and filtered rate `rate` (V/s); reset() returns to them. Chain it with the other physics "
+        "blocks in a BlockChain.")
+        .def(py::init([](double dt, const RateDependentModel& model, const State& state, double rate) {
+                 return preisach::blocks::RateStage(dt, std::make_shared<const RateDependentModel>(model), state,
+                                                    rate);
+             }),
+             py::arg("dt"), py::arg("model"), py::arg("state"), py::arg("rate") = 0.0)
+        .def_property_readonly("state", &preisach::blocks::RateStage::state, "Current boundary.")
+        .def_property_readonly("rate", &preisach::blocks::RateStage::rate, "Current filtered rate (V/s).")
+        .def_property_readonly("output", &preisach::blocks::RateStage::output, "Last output (V).")
+        .def_property_readonly("initial_state", &preisach::blocks::RateStage::initial_state)
+        .def_property_readonly("initial_rate", &preisach::blocks::RateStage::initial_rate)
+        .def("set_initial_state", &preisach::blocks::RateStage::set_initial_state, py::arg("state"),
+             py::arg("rate"), "Start from `state` and `rate` (V/s) after the next reset().");
+
     m.def(
         "simulate_rate",
         [](const RateDependentModel& model, const InArray& u, const State& state, double rate, double sample_time,
@@ -151,16 +162,10 @@ void register_rate(py::module_& m) {
         [](RateSimulator& sim, const InArray& u_open, double setpoint, double kp, double ki, double sample_time,
            std::size_t average, std::size_t enable_at, double input_gain, const std::string& out_of_range) {
             const auto policy = parse_policy(out_of_range);
-            const ClosedLoopConfig cfg = rate_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
-            std::size_t n = 0;
-            const double* pu = as_vector(u_open, "u_open", n);
-            py::array_t<double> u{py::ssize_t(n)}, y{py::ssize_t(n)}, uc{py::ssize_t(n)};
-            double *a = u.mutable_data(), *b = y.mutable_data(), *c = uc.mutable_data();
-            {
-                py::gil_scoped_release release;
+            const ClosedLoopConfig cfg = make_loop_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
+            return closed_loop_arrays(u_open, [&](const double* pu, double* a, double* b, double* c, std::size_t n) {
                 preisach::run_rate_closed_loop(sim, pu, a, b, c, n, cfg, policy);
-            }
-            return py::make_tuple(u, y, uc);
+            });
         },
         py::arg("simulator"), py::arg("u_open"), py::arg("setpoint"), py::arg("kp"), py::arg("ki"),
         py::arg("sample_time"), py::arg("average") = 1, py::arg("enable_at") = 0, py::arg("input_gain") = 1.0,
@@ -172,23 +177,15 @@ void register_rate(py::module_& m) {
         [](const RateDependentModel& model, const std::vector<State>& states, const std::vector<double>& rates,
            const InArray& u_open, double setpoint, double kp, double ki, double sample_time, std::size_t average,
            std::size_t enable_at, double input_gain, const std::string& out_of_range, unsigned threads) {
-            if (u_open.ndim() != 2)
-                throw std::invalid_argument("u_open: expected a 2-D array (runs x samples), got " +
-                                            std::to_string(u_open.ndim()) + " dimensions");
             const auto policy = parse_policy(out_of_range);
-            const ClosedLoopConfig cfg = rate_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
-            const std::size_t rows = std::size_t(u_open.shape(0)), n = std::size_t(u_open.shape(1));
-            py::array_t<double> u({py::ssize_t(rows), py::ssize_t(n)}), y({py::ssize_t(rows), py::ssize_t(n)}),
-                uc({py::ssize_t(rows), py::ssize_t(n)});
-            const double* pu = u_open.data();
-            double *a = u.mutable_data(), *b = y.mutable_data(), *c = uc.mutable_data();
-            preisach::RateBatchResult res;
-            {
-                py::gil_scoped_release release;
-                res = preisach::run_rate_closed_loop_batch(model, states, rates, pu, a, b, c, rows, n, cfg, policy,
-                                                           threads);
-            }
-            return py::make_tuple(u, y, uc, res.states, vec(res.rates));
+            const ClosedLoopConfig cfg = make_loop_config(setpoint, kp, ki, sample_time, average, enable_at, input_gain);
+            return closed_loop_batch_arrays(
+                u_open,
+                [&](const double* pu, double* a, double* b, double* c, std::size_t rows, std::size_t n) {
+                    return preisach::run_rate_closed_loop_batch(model, states, rates, pu, a, b, c, rows, n, cfg,
+                                                                policy, threads);
+                },
+                [](const preisach::RateBatchResult& res) { return py::make_tuple(res.states, vec(res.rates)); });
         },
         py::arg("model"), py::arg("states"), py::arg("rates"), py::arg("u_open"), py::arg("setpoint"), py::arg("kp"),
         py::arg("ki"), py::arg("sample_time"), py::arg("average") = 1, py::arg("enable_at") = 0,
@@ -220,7 +217,7 @@ void register_rate(py::module_& m) {
         [](const InArray& levels, const State& state, const InArray& u, const InArray& y,
            const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& fold, int n_folds,
            const std::vector<double>& knots, double tau, double sample_time, double rate0,
-           const std::string& out_of_range) {
+           const std::string& out_of_range, const std::string& scale) {
             const auto policy = parse_policy(out_of_range);
             std::size_t nl = 0, n = 0, ny = 0;
             const double* pl = as_vector(levels, "levels", nl);
@@ -238,6 +235,7 @@ void register_rate(py::module_& m) {
             rr.tau = tau;
             rr.sample_time = sample_time;
             rr.rate0 = rate0;
+            rr.scale = preisach::parse_rate_scale(scale);
             const std::size_t p = (nl * (nl - 1) / 2 + 1) * knots.size(), F = std::size_t(n_folds);
             py::array_t<double> G({py::ssize_t(F), py::ssize_t(p), py::ssize_t(p)}), b({py::ssize_t(F), py::ssize_t(p)}),
                 yy{py::ssize_t(F)}, ys{py::ssize_t(F)};
@@ -256,7 +254,7 @@ void register_rate(py::module_& m) {
         },
         py::arg("levels"), py::arg("state"), py::arg("u"), py::arg("y"), py::arg("fold"), py::arg("n_folds"),
         py::arg("knots"), py::arg("tau"), py::arg("sample_time"), py::arg("rate0") = 0.0,
-        py::arg("out_of_range") = "clamp",
+        py::arg("out_of_range") = "clamp", py::arg("scale") = "log",
         "Normal equations of y_t = sum_k b_k(v_t) r_t . theta_k per fold (fold[t] < 0: burn-in); returns "
         "(gram (F, p, p), rhs (F, p), yy, ysum, count, final_state, final_rate), p = K (nodes + 1).");
 }

@@ -3,8 +3,10 @@
 // the filter is the stated first-order low-pass, and batch/closed-loop runs match single runs.
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include <doctest/doctest.h>
@@ -30,10 +32,11 @@ EverettTable scaled_table(const Eigen::VectorXd& lv, double scale, double shear,
     return EverettTable(lv, v, y_min);
 }
 
-RateDependentModel three_tables(const Eigen::VectorXd& lv, double tau) {
+RateDependentModel three_tables(const Eigen::VectorXd& lv, double tau,
+                                preisach::RateScale scale = preisach::RateScale::log) {
     return RateDependentModel({scaled_table(lv, 1.0, 0.0, Y_MIN), scaled_table(lv, 1.3, 0.05, Y_MIN - 0.2),
                                scaled_table(lv, 1.8, -0.04, Y_MIN - 0.5)},
-                              {10.0, 20.0, 40.0}, tau);
+                              {10.0, 20.0, 40.0}, tau, scale);
 }
 
 // A walk whose step size is constant: |du| = h every sample, reflected at the range ends
@@ -78,6 +81,30 @@ TEST_CASE("rate basis: hat functions in ln(rate), a partition of unity, constant
     CHECK_THROWS_AS(RateBasis(std::vector<double>{}), std::invalid_argument);
     CHECK_THROWS_AS(RateBasis(std::vector<double>{2.0, 1.0}), std::invalid_argument);
     CHECK_THROWS_AS(RateBasis(std::vector<double>{0.0, 1.0}), std::invalid_argument);
+}
+
+TEST_CASE("rate basis: linear scale interpolates in the rate itself") {
+    const RateBasis b(std::vector<double>{400.0, 800.0, 1600.0}, preisach::RateScale::linear);
+    CHECK(b.scale() == preisach::RateScale::linear);
+    double w[3];
+    b.weights(600.0, w);  // halfway between 400 and 800 in v
+    CHECK(w[0] == doctest::Approx(0.5).epsilon(1e-14));
+    CHECK(w[1] == doctest::Approx(0.5).epsilon(1e-14));
+    b.weights(1200.0, w);
+    CHECK(w[1] == doctest::Approx(0.5).epsilon(1e-14));
+    CHECK(w[2] == doctest::Approx(0.5).epsilon(1e-14));
+    b.weights(100.0, w);
+    CHECK(w[0] == 1.0);
+    b.weights(2000.0, w);
+    CHECK(w[2] == 1.0);
+    // the log scale differs between the knots (ln-midpoint 400 sqrt 2 is not the v-midpoint)
+    const RateBasis l(std::vector<double>{400.0, 800.0, 1600.0});
+    double wl[3];
+    l.weights(600.0, wl);
+    CHECK(wl[1] > w[1] + 0.05);
+    CHECK(preisach::parse_rate_scale("linear") == preisach::RateScale::linear);
+    CHECK(std::string(preisach::rate_scale_name(preisach::RateScale::log)) == "log");
+    CHECK_THROWS_AS(preisach::parse_rate_scale("ln"), std::invalid_argument);
 }
 
 TEST_CASE("rate model: one table is the classical simulator, bit for bit") {
@@ -256,50 +283,117 @@ TEST_CASE("rate model: batch and closed-loop batch equal single runs") {
 }
 
 TEST_CASE("rate model: the stacked regression rows reproduce the simulated output") {
-    const auto lv = uniform_levels(9);
-    const auto m = three_tables(lv, 0.01);
+    for (const auto scale : {preisach::RateScale::log, preisach::RateScale::linear}) {
+        CAPTURE(preisach::rate_scale_name(scale));
+        const auto lv = uniform_levels(9);
+        const auto m = three_tables(lv, 0.01, scale);
+        const double dt = 1e-3;
+        std::mt19937 g(41);
+        const std::size_t n = 3000;
+        std::vector<double> u(n), y(n);
+        // a walk whose speed changes: rates across all three knots
+        double x = 0.0;
+        for (std::size_t k = 0; k < n; ++k) {
+            const double speed = 0.004 + 0.05 * std::abs(std::sin(double(k) * 0.003));
+            x += speed * (std::sin(double(k) * 0.02) > 0 ? 1.0 : -1.0);
+            x = std::min(std::max(x, U_MIN), U_MAX);
+            u[k] = x;
+        }
+        const State s0 = State::neutral(U_MIN, U_MAX, 0.0);
+        RateSimulator sim(m, s0, 0.0, dt);
+        for (std::size_t k = 0; k < n; ++k) y[k] = sim.step(u[k]);
+        preisach::RateRegression rr;
+        rr.knots = m.knots();
+        rr.scale = m.scale();
+        rr.tau = m.tau();
+        rr.sample_time = dt;
+        const std::size_t nl = std::size_t(lv.size()), p1 = nl * (nl - 1) / 2 + 1, p = 3 * p1;
+        std::vector<double> G(p * p), b(p), yy(1), ys(1);
+        std::vector<std::int64_t> cnt(1);
+        std::vector<std::int32_t> fold(n, 0);
+        State fin;
+        double vfin = -1.0;
+        preisach::accumulate_rate_normal_equations_into(lv, s0, u.data(), y.data(), fold.data(), n, 1,
+                                                        InputPolicy::raise, rr,
+                                                        {G.data(), b.data(), yy.data(), ys.data(), cnt.data()}, &fin,
+                                                        &vfin);
+        Eigen::VectorXd theta = Eigen::VectorXd::Zero(Eigen::Index(p));
+        for (std::size_t k = 0; k < 3; ++k) {
+            const EverettTable& t = m.table(k);
+            for (std::size_t i = 1; i < std::size_t(lv.size()); ++i)
+                for (std::size_t j = 0; j < i; ++j)
+                    theta[Eigen::Index(k * p1 + preisach::EverettRegressor::node_index(i, j))] = t.node(i, j);
+            theta[Eigen::Index(k * p1 + p1 - 1)] = t.y_min();
+        }
+        const Eigen::Map<const preisach::RowMatrixXd> Gm(G.data(), Eigen::Index(p), Eigen::Index(p));
+        const Eigen::Map<const Eigen::VectorXd> bm(b.data(), Eigen::Index(p));
+        const double rss = theta.dot(Gm * theta) - 2.0 * theta.dot(bm) + yy[0];
+        CHECK(std::abs(rss) < 1e-8 * yy[0]);
+        CHECK(cnt[0] == std::int64_t(n));
+        CHECK(fin == sim.state());
+        CHECK(vfin == doctest::Approx(sim.rate()).epsilon(1e-12));
+    }
+}
+
+TEST_CASE("rate stage: a block that is the rate simulator, in a chain with other blocks") {
+    const auto lv = uniform_levels(15);
+    const auto m = std::make_shared<const RateDependentModel>(three_tables(lv, 0.01, preisach::RateScale::linear));
     const double dt = 1e-3;
-    std::mt19937 g(41);
-    const std::size_t n = 3000;
-    std::vector<double> u(n), y(n);
-    // a walk whose speed changes: rates across all three knots
-    double x = 0.0;
-    for (std::size_t k = 0; k < n; ++k) {
-        const double speed = 0.004 + 0.05 * std::abs(std::sin(double(k) * 0.003));
-        x += speed * (std::sin(double(k) * 0.02) > 0 ? 1.0 : -1.0);
-        x = std::min(std::max(x, U_MIN), U_MAX);
-        u[k] = x;
-    }
+    const State s0 = State::neutral(U_MIN, U_MAX, 0.1);
+    std::mt19937 g(17);
+    const auto u = random_walk(g, 1500, 0.0, 0.02);
+    preisach::blocks::RateStage stage(dt, m, s0, 12.0);
+    CHECK(stage.kind() == "rate_preisach");
+    RateSimulator sim(*m, s0, 12.0, dt);
+    for (std::size_t k = 0; k < 700; ++k) REQUIRE(stage.step(u[k]) == sim.step(u[k]));
+    // a clone continues exactly; reset returns to the starting state and rate
+    const auto copy = stage.clone();
+    for (std::size_t k = 700; k < u.size(); ++k) REQUIRE(copy->step(u[k]) == sim.step(u[k]));
+    CHECK(stage.reset(0.0) == doctest::Approx(RateSimulator(*m, s0, 12.0, dt).output()).epsilon(1e-15));
+    CHECK(stage.rate() == 12.0);
+    CHECK(stage.state() == s0);
+    // inputs outside the range are clamped; NaN raises
+    CHECK(stage.step(U_MAX + 5.0) == doctest::Approx(stage.step(U_MAX)).epsilon(1e-12));
+    CHECK_THROWS_AS(stage.step(std::nan("")), std::invalid_argument);
+    CHECK_THROWS_AS(stage.set_initial_state(s0, -1.0), std::invalid_argument);
+    // in a chain after an input lag: the same as lag then simulator
+    std::vector<std::unique_ptr<preisach::blocks::Block>> blocks;
+    blocks.push_back(std::make_unique<preisach::blocks::InputLag>(dt, 2e-3));
+    blocks.push_back(std::make_unique<preisach::blocks::RateStage>(dt, m, s0, 0.0));
+    preisach::blocks::Chain chain(std::move(blocks));
+    chain.reset(0.1);
+    preisach::blocks::InputLag lag(dt, 2e-3);
+    lag.reset(0.1);
+    RateSimulator ref(*m, s0, 0.0, dt);
+    for (std::size_t k = 0; k < u.size(); ++k) REQUIRE(chain.step(u[k]) == ref.step(lag.step(u[k])));
+}
+
+TEST_CASE("rate stage: the PI loop around a chain is the rate model's closed loop") {
+    const auto lv = uniform_levels(15);
+    const auto m = std::make_shared<const RateDependentModel>(three_tables(lv, 0.01));
+    const double dt = 1e-3;
     const State s0 = State::neutral(U_MIN, U_MAX, 0.0);
-    RateSimulator sim(m, s0, 0.0, dt);
-    for (std::size_t k = 0; k < n; ++k) y[k] = sim.step(u[k]);
-    preisach::RateRegression rr;
-    rr.knots = m.knots();
-    rr.tau = m.tau();
-    rr.sample_time = dt;
-    const std::size_t nl = std::size_t(lv.size()), p1 = nl * (nl - 1) / 2 + 1, p = 3 * p1;
-    std::vector<double> G(p * p), b(p), yy(1), ys(1);
-    std::vector<std::int64_t> cnt(1);
-    std::vector<std::int32_t> fold(n, 0);
-    State fin;
-    double vfin = -1.0;
-    preisach::accumulate_rate_normal_equations_into(lv, s0, u.data(), y.data(), fold.data(), n, 1,
-                                                    InputPolicy::raise, rr,
-                                                    {G.data(), b.data(), yy.data(), ys.data(), cnt.data()}, &fin,
-                                                    &vfin);
-    Eigen::VectorXd theta = Eigen::VectorXd::Zero(Eigen::Index(p));
-    for (std::size_t k = 0; k < 3; ++k) {
-        const EverettTable& t = m.table(k);
-        for (std::size_t i = 1; i < std::size_t(lv.size()); ++i)
-            for (std::size_t j = 0; j < i; ++j)
-                theta[Eigen::Index(k * p1 + preisach::EverettRegressor::node_index(i, j))] = t.node(i, j);
-        theta[Eigen::Index(k * p1 + p1 - 1)] = t.y_min();
+    ClosedLoopConfig cfg;
+    cfg.setpoint = 0.4;
+    cfg.kp = 0.02;
+    cfg.ki = 5.0;
+    cfg.sample_time = dt;
+    cfg.average = 5;
+    cfg.enable_at = 50;
+    const std::size_t n = 900;
+    std::vector<double> uo(n);
+    for (std::size_t k = 0; k < n; ++k) uo[k] = 0.3 + 0.2 * std::sin(double(k) * 0.05);
+    std::vector<double> u1(n), y1(n), c1(n), u2(n), y2(n), c2(n);
+    RateSimulator sim(*m, s0, 0.0, dt);
+    preisach::run_rate_closed_loop(sim, uo.data(), u1.data(), y1.data(), c1.data(), n, cfg, InputPolicy::clamp);
+    std::vector<std::unique_ptr<preisach::blocks::Block>> blocks;
+    blocks.push_back(std::make_unique<preisach::blocks::RateStage>(dt, m, s0, 0.0));
+    preisach::blocks::Chain chain(std::move(blocks));
+    preisach::run_pi_loop([&](double v, std::size_t) { return chain.step(v); }, m->u_min(), m->u_max(), uo.data(),
+                          u2.data(), y2.data(), c2.data(), n, cfg, InputPolicy::clamp);
+    for (std::size_t k = 0; k < n; ++k) {
+        REQUIRE(u1[k] == u2[k]);
+        REQUIRE(y1[k] == y2[k]);
+        REQUIRE(c1[k] == c2[k]);
     }
-    const Eigen::Map<const preisach::RowMatrixXd> Gm(G.data(), Eigen::Index(p), Eigen::Index(p));
-    const Eigen::Map<const Eigen::VectorXd> bm(b.data(), Eigen::Index(p));
-    const double rss = theta.dot(Gm * theta) - 2.0 * theta.dot(bm) + yy[0];
-    CHECK(std::abs(rss) < 1e-8 * yy[0]);
-    CHECK(cnt[0] == std::int64_t(n));
-    CHECK(fin == sim.state());
-    CHECK(vfin == doctest::Approx(sim.rate()).epsilon(1e-12));
 }

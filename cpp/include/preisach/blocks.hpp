@@ -8,4 +8,5 @@
 #include "blocks/filters.hpp"
 #include "blocks/linear.hpp"
 #include "blocks/preisach_stage.hpp"
+#include "blocks/rate_stage.hpp"
 #include "blocks/rng.hpp"

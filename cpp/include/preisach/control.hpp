@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "batch.hpp"
 #include "simulator.hpp"
 
 namespace preisach {
@@ -109,14 +110,15 @@ struct ClosedLoopConfig {
     }
 };
 
-// Run n samples of the loop on `sim` (which keeps its state afterwards).  Outputs: u (the
-// applied model input, after the input policy), y (model output) and uc (controller output,
-// controller units), each of length n.
-inline void run_closed_loop(Simulator& sim, const double* u_open, double* u, double* y, double* uc, std::size_t n,
-                            const ClosedLoopConfig& cfg, InputPolicy policy) {
+// The loop above around any plant: `step(v, k)` applies the model input v at sample k and
+// returns the output; [lo, hi] is the input range (the clamp policy clamps v to it, the raise
+// policy leaves the check to `step`).  u (the applied model input), y (output) and uc
+// (controller output, controller units) receive n values each.
+template <class Step>
+void run_pi_loop(Step&& step, double lo, double hi, const double* u_open, double* u, double* y, double* uc,
+                 std::size_t n, const ClosedLoopConfig& cfg, InputPolicy policy) {
     cfg.validate();
     PIController pi(cfg.kp, cfg.ki, cfg.sample_time, cfg.average);
-    const double lo = sim.table().u_min(), hi = sim.table().u_max();
     double c = 0.0;
     for (std::size_t k = 0; k < n; ++k) {
         double v = u_open[k] + cfg.input_gain * c;
@@ -124,13 +126,22 @@ inline void run_closed_loop(Simulator& sim, const double* u_open, double* u, dou
             throw std::invalid_argument("closed loop: input u[" + std::to_string(k) + "] is not finite (u_open = " +
                                         std::to_string(u_open[k]) + ")");
         if (policy == InputPolicy::clamp) v = std::min(std::max(v, lo), hi);
-        const double out = sim.step_checked(v, policy, k);
+        const double out = step(v, k);
         u[k] = v;
         y[k] = out;
         const double e = cfg.setpoint - out;
         c = k >= cfg.enable_at ? pi.update(e) : (pi.observe(e), 0.0);
         uc[k] = c;
     }
+}
+
+// Run n samples of the loop on `sim` (which keeps its state afterwards).  Outputs: u (the
+// applied model input, after the input policy), y (model output) and uc (controller output,
+// controller units), each of length n.
+inline void run_closed_loop(Simulator& sim, const double* u_open, double* u, double* y, double* uc, std::size_t n,
+                            const ClosedLoopConfig& cfg, InputPolicy policy) {
+    run_pi_loop([&](double v, std::size_t k) { return sim.step_checked(v, policy, k); }, sim.table().u_min(),
+                sim.table().u_max(), u_open, u, y, uc, n, cfg, policy);
 }
 
 // Row r of U_open (m x n, row-major) from states[r] (or states[0] for all rows) on
@@ -140,40 +151,14 @@ inline std::vector<State> run_closed_loop_batch(const EverettTable& table, const
                                                 const double* U_open, double* U, double* Y, double* UC,
                                                 std::size_t m, std::size_t n, const ClosedLoopConfig& cfg,
                                                 InputPolicy policy, unsigned threads = 0) {
-    if (states.size() != 1 && states.size() != m)
-        throw std::invalid_argument("states: need one state or one per input row (" + std::to_string(m) +
-                                    "), got " + std::to_string(states.size()));
+    check_row_states(states.size(), m);
     cfg.validate();
-    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-    threads = unsigned(std::min<std::size_t>(threads, std::max<std::size_t>(m, 1)));
     std::vector<State> finals(m);
-    std::vector<std::exception_ptr> errors(m);
-    auto work = [&](std::size_t first, std::size_t stride) {
-        for (std::size_t r = first; r < m; r += stride) {
-            try {
-                Simulator sim(table, states.size() == 1 ? states[0] : states[r]);
-                run_closed_loop(sim, U_open + r * n, U + r * n, Y + r * n, UC + r * n, n, cfg, policy);
-                finals[r] = sim.state();
-            } catch (...) {
-                errors[r] = std::current_exception();
-            }
-        }
-    };
-    if (threads <= 1) {
-        work(0, 1);
-    } else {
-        std::vector<std::thread> pool;
-        for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work, t, threads);
-        for (auto& th : pool) th.join();
-    }
-    for (std::size_t r = 0; r < m; ++r)
-        if (errors[r]) {
-            try {
-                std::rethrow_exception(errors[r]);
-            } catch (const std::invalid_argument& e) {
-                throw std::invalid_argument("row " + std::to_string(r) + ": " + e.what());
-            }
-        }
+    for_each_row(m, threads, [&](std::size_t r) {
+        Simulator sim(table, states.size() == 1 ? states[0] : states[r]);
+        run_closed_loop(sim, U_open + r * n, U + r * n, Y + r * n, UC + r * n, n, cfg, policy);
+        finals[r] = sim.state();
+    });
     return finals;
 }
 

@@ -11,9 +11,10 @@
 //
 // a causal first-order low-pass of |du/dt| with time constant tau (s), exact for a rate held
 // over each sample interval; tau = 0 gives v = r.  The basis functions b_k are the hat
-// functions of linear interpolation in ln v on the knots v_0 < ... < v_{K-1} (V/s): between
-// v_j and v_{j+1}, b_j = 1 - x and b_{j+1} = x with x = ln(v / v_j) / ln(v_{j+1} / v_j); below
-// v_0 only b_0 = 1, above v_{K-1} only b_{K-1} = 1 (constant extrapolation).  They are a
+// functions of linear interpolation on the knots v_0 < ... < v_{K-1} (V/s), either in ln v
+// (RateScale::log) or in v (RateScale::linear): between v_j and v_{j+1}, b_j = 1 - x and
+// b_{j+1} = x with x = ln(v / v_j) / ln(v_{j+1} / v_j), resp. (v - v_j) / (v_{j+1} - v_j);
+// below v_0 only b_0 = 1, above v_{K-1} only b_{K-1} = 1 (constant extrapolation).  They are a
 // partition of unity, so for a constant v the model is the classical one with the blended
 // table E = sum_k b_k(v) E_k, y_min = sum_k b_k(v) y_min_k (the read-out is linear in the table
 // at a fixed boundary); with K = 1 it is the classical model (b_0 = 1, bit for bit).
@@ -36,6 +37,7 @@
 #include <utility>
 #include <vector>
 
+#include "batch.hpp"
 #include "control.hpp"
 #include "everett.hpp"
 #include "memory.hpp"
@@ -44,11 +46,23 @@
 
 namespace preisach {
 
-// Hat functions in ln(rate) on strictly increasing positive knots (V/s).
+// The coordinate in which the basis interpolates between knots.
+enum class RateScale { log, linear };
+
+inline RateScale parse_rate_scale(const std::string& s) {
+    if (s == "log") return RateScale::log;
+    if (s == "linear") return RateScale::linear;
+    throw std::invalid_argument("scale: expected 'log' or 'linear', got '" + s + "'");
+}
+
+inline const char* rate_scale_name(RateScale s) noexcept { return s == RateScale::log ? "log" : "linear"; }
+
+// Hat functions in ln(rate) or in rate on strictly increasing positive knots (V/s).
 class RateBasis {
 public:
     RateBasis() = default;
-    explicit RateBasis(std::vector<double> knots) : knots_(std::move(knots)) {
+    explicit RateBasis(std::vector<double> knots, RateScale scale = RateScale::log)
+        : knots_(std::move(knots)), scale_(scale) {
         if (knots_.empty()) throw std::invalid_argument("knots: need at least one rate knot");
         for (std::size_t k = 0; k < knots_.size(); ++k) {
             if (!std::isfinite(knots_[k]) || !(knots_[k] > 0.0))
@@ -58,14 +72,17 @@ public:
                 throw std::invalid_argument("knots must be strictly increasing; knots[" + std::to_string(k) +
                                             "] <= knots[" + std::to_string(k - 1) + "]");
         }
-        log_.resize(knots_.size());
-        for (std::size_t k = 0; k < knots_.size(); ++k) log_[k] = std::log(knots_[k]);
-        inv_dlog_.resize(knots_.size());
-        for (std::size_t k = 0; k + 1 < knots_.size(); ++k) inv_dlog_[k] = 1.0 / (log_[k + 1] - log_[k]);
+        // x = (c(v) - c_j) / (c_{j+1} - c_j) with c = ln v or c = v
+        coord_.resize(knots_.size());
+        for (std::size_t k = 0; k < knots_.size(); ++k)
+            coord_[k] = scale_ == RateScale::log ? std::log(knots_[k]) : knots_[k];
+        inv_dc_.resize(knots_.size());
+        for (std::size_t k = 0; k + 1 < knots_.size(); ++k) inv_dc_[k] = 1.0 / (coord_[k + 1] - coord_[k]);
     }
 
     std::size_t size() const noexcept { return knots_.size(); }
     const std::vector<double>& knots() const noexcept { return knots_; }
+    RateScale scale() const noexcept { return scale_; }
 
     // The two weights that can be non-zero: b_j = 1 - x and b_{j+1} = x (x = 0 outside the
     // knots, with j = 0 or K - 1); v is a rate (V/s), v <= 0 counts as below the first knot.
@@ -82,7 +99,7 @@ public:
         }
         j = 0;
         while (v >= knots_[j + 1]) ++j;
-        x = (std::log(v) - log_[j]) * inv_dlog_[j];
+        x = ((scale_ == RateScale::log ? std::log(v) : v) - coord_[j]) * inv_dc_[j];
     }
 
     // Weights b_k(v) into w[0..K).
@@ -97,8 +114,9 @@ public:
 
 private:
     std::vector<double> knots_;
-    std::vector<double> log_;
-    std::vector<double> inv_dlog_;
+    RateScale scale_ = RateScale::log;
+    std::vector<double> coord_;
+    std::vector<double> inv_dc_;
 };
 
 // Coefficient of the first-order rate filter for one sample interval dt (s).
@@ -111,8 +129,9 @@ inline double rate_filter_gain(double dt, double tau) {
 // K Everett tables on one grid, their rate knots and the filter time constant.
 class RateDependentModel {
 public:
-    RateDependentModel(std::vector<EverettTable> tables, std::vector<double> knots, double tau)
-        : tables_(std::move(tables)), basis_(std::move(knots)), tau_(tau) {
+    RateDependentModel(std::vector<EverettTable> tables, std::vector<double> knots, double tau,
+                       RateScale scale = RateScale::log)
+        : tables_(std::move(tables)), basis_(std::move(knots), scale), tau_(tau) {
         const std::size_t K = tables_.size();
         if (K == 0) throw std::invalid_argument("tables: need at least one Everett table");
         if (basis_.size() != K)
@@ -151,6 +170,7 @@ public:
     const std::vector<EverettTable>& tables() const noexcept { return tables_; }
     const RateBasis& basis() const noexcept { return basis_; }
     const std::vector<double>& knots() const noexcept { return basis_.knots(); }
+    RateScale scale() const noexcept { return basis_.scale(); }
     double tau() const noexcept { return tau_; }
     double u_min() const noexcept { return tables_[0].u_min(); }
     double u_max() const noexcept { return tables_[0].u_max(); }
@@ -530,75 +550,38 @@ struct RateBatchResult {
     std::vector<double> rates;
 };
 
+inline void check_rate_rows(const std::vector<State>& states, const std::vector<double>& rates, std::size_t m) {
+    check_row_states(states.size(), m);
+    if (rates.size() != states.size())
+        throw std::invalid_argument("rates: need one rate per state (" + std::to_string(states.size()) + "), got " +
+                                    std::to_string(rates.size()));
+}
+
 inline RateBatchResult run_rate_batch(const RateDependentModel& model, const std::vector<State>& states,
                                       const std::vector<double>& rates, double sample_time, const double* U,
                                       double* Y, double* V, std::size_t m, std::size_t n, InputPolicy policy,
                                       unsigned threads = 0) {
-    if (states.size() != 1 && states.size() != m)
-        throw std::invalid_argument("states: need one state or one per input row (" + std::to_string(m) +
-                                    "), got " + std::to_string(states.size()));
-    if (rates.size() != states.size())
-        throw std::invalid_argument("rates: need one rate per state (" + std::to_string(states.size()) + "), got " +
-                                    std::to_string(rates.size()));
+    check_rate_rows(states, rates, m);
     rate_filter_gain(sample_time, model.tau());
-    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-    threads = unsigned(std::min<std::size_t>(threads, std::max<std::size_t>(m, 1)));
     RateBatchResult out{std::vector<State>(m), std::vector<double>(m, 0.0)};
-    std::vector<std::exception_ptr> errors(m);
-    auto work = [&](std::size_t first, std::size_t stride) {
-        for (std::size_t r = first; r < m; r += stride) {
-            try {
-                const std::size_t s = states.size() == 1 ? 0 : r;
-                RateSimulator sim(model, states[s], rates[s], sample_time);
-                sim.run(U + r * n, Y + r * n, n, policy, V ? V + r * n : nullptr);
-                out.states[r] = sim.state();
-                out.rates[r] = sim.rate();
-            } catch (...) {
-                errors[r] = std::current_exception();
-            }
-        }
-    };
-    if (threads <= 1) {
-        work(0, 1);
-    } else {
-        std::vector<std::thread> pool;
-        for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work, t, threads);
-        for (auto& th : pool) th.join();
-    }
-    for (std::size_t r = 0; r < m; ++r)
-        if (errors[r]) {
-            try {
-                std::rethrow_exception(errors[r]);
-            } catch (const std::invalid_argument& e) {
-                throw std::invalid_argument("row " + std::to_string(r) + ": " + e.what());
-            }
-        }
+    for_each_row(m, threads, [&](std::size_t r) {
+        const std::size_t s = states.size() == 1 ? 0 : r;
+        RateSimulator sim(model, states[s], rates[s], sample_time);
+        sim.run(U + r * n, Y + r * n, n, policy, V ? V + r * n : nullptr);
+        out.states[r] = sim.state();
+        out.rates[r] = sim.rate();
+    });
     return out;
 }
 
-// The PI loop of control.hpp (run_closed_loop) around a rate-dependent model.
+// The PI loop of control.hpp (run_pi_loop) around a rate-dependent model.
 inline void run_rate_closed_loop(RateSimulator& sim, const double* u_open, double* u, double* y, double* uc,
                                  std::size_t n, const ClosedLoopConfig& cfg, InputPolicy policy) {
-    cfg.validate();
     if (std::abs(cfg.sample_time - sim.sample_time()) > 1e-9 * sim.sample_time())
         throw std::invalid_argument("closed loop: sample_time " + std::to_string(cfg.sample_time) +
                                     " s differs from the simulator's " + std::to_string(sim.sample_time()) + " s");
-    PIController pi(cfg.kp, cfg.ki, cfg.sample_time, cfg.average);
-    const double lo = sim.model().u_min(), hi = sim.model().u_max();
-    double c = 0.0;
-    for (std::size_t k = 0; k < n; ++k) {
-        double v = u_open[k] + cfg.input_gain * c;
-        if (!std::isfinite(v))
-            throw std::invalid_argument("closed loop: input u[" + std::to_string(k) + "] is not finite (u_open = " +
-                                        std::to_string(u_open[k]) + ")");
-        if (policy == InputPolicy::clamp) v = std::min(std::max(v, lo), hi);
-        const double out = sim.step_checked(v, policy, k);
-        u[k] = v;
-        y[k] = out;
-        const double e = cfg.setpoint - out;
-        c = k >= cfg.enable_at ? pi.update(e) : (pi.observe(e), 0.0);
-        uc[k] = c;
-    }
+    run_pi_loop([&](double v, std::size_t k) { return sim.step_checked(v, policy, k); }, sim.model().u_min(),
+                sim.model().u_max(), u_open, u, y, uc, n, cfg, policy);
 }
 
 // Row r of U_open (m x n) from states[r] / rates[r] (or the single ones) on `threads` threads.
@@ -607,46 +590,17 @@ inline RateBatchResult run_rate_closed_loop_batch(const RateDependentModel& mode
                                                   double* Y, double* UC, std::size_t m, std::size_t n,
                                                   const ClosedLoopConfig& cfg, InputPolicy policy,
                                                   unsigned threads = 0) {
-    if (states.size() != 1 && states.size() != m)
-        throw std::invalid_argument("states: need one state or one per input row (" + std::to_string(m) +
-                                    "), got " + std::to_string(states.size()));
-    if (rates.size() != states.size())
-        throw std::invalid_argument("rates: need one rate per state (" + std::to_string(states.size()) + "), got " +
-                                    std::to_string(rates.size()));
+    check_rate_rows(states, rates, m);
     cfg.validate();
-    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-    threads = unsigned(std::min<std::size_t>(threads, std::max<std::size_t>(m, 1)));
     RateBatchResult out{std::vector<State>(m), std::vector<double>(m, 0.0)};
-    std::vector<std::exception_ptr> errors(m);
-    auto work = [&](std::size_t first, std::size_t stride) {
-        for (std::size_t r = first; r < m; r += stride) {
-            try {
-                const std::size_t s = states.size() == 1 ? 0 : r;
-                RateSimulator sim(model, states[s], rates[s], cfg.sample_time);
-                const std::size_t off = r * n;
-                run_rate_closed_loop(sim, U_open + off, U + off, Y + off, UC + off, n, cfg, policy);
-                out.states[r] = sim.state();
-                out.rates[r] = sim.rate();
-            } catch (...) {
-                errors[r] = std::current_exception();
-            }
-        }
-    };
-    if (threads <= 1) {
-        work(0, 1);
-    } else {
-        std::vector<std::thread> pool;
-        for (unsigned t = 0; t < threads; ++t) pool.emplace_back(work, t, threads);
-        for (auto& th : pool) th.join();
-    }
-    for (std::size_t r = 0; r < m; ++r)
-        if (errors[r]) {
-            try {
-                std::rethrow_exception(errors[r]);
-            } catch (const std::invalid_argument& e) {
-                throw std::invalid_argument("row " + std::to_string(r) + ": " + e.what());
-            }
-        }
+    for_each_row(m, threads, [&](std::size_t r) {
+        const std::size_t s = states.size() == 1 ? 0 : r;
+        RateSimulator sim(model, states[s], rates[s], cfg.sample_time);
+        const std::size_t off = r * n;
+        run_rate_closed_loop(sim, U_open + off, U + off, Y + off, UC + off, n, cfg, policy);
+        out.states[r] = sim.state();
+        out.rates[r] = sim.rate();
+    });
     return out;
 }
 
@@ -662,6 +616,7 @@ struct RateRegression {
     double tau = 0.0;           // s
     double sample_time = 1e-3;  // s
     double rate0 = 0.0;         // filtered rate before the first sample (V/s)
+    RateScale scale = RateScale::log;
 };
 
 inline void accumulate_rate_normal_equations_into(const VectorRef& levels, const State& state, const double* u,
@@ -674,7 +629,7 @@ inline void accumulate_rate_normal_equations_into(const VectorRef& levels, const
         throw std::invalid_argument("tau: must be >= 0 and finite (s), got " + std::to_string(rr.tau));
     if (!std::isfinite(rr.rate0) || rr.rate0 < 0.0)
         throw std::invalid_argument("rate: must be >= 0 and finite (V/s), got " + std::to_string(rr.rate0));
-    const RateBasis basis(rr.knots);
+    const RateBasis basis(rr.knots, rr.scale);
     const double gain = rate_filter_gain(rr.sample_time, rr.tau), inv_dt = 1.0 / rr.sample_time;
     EverettRegressor reg(levels, state);
     const std::size_t p1 = reg.n_params(), K = basis.size(), p = p1 * K, F = std::size_t(n_folds);
