@@ -11,10 +11,20 @@ r"""A rate-dependent Preisach model: Everett tables blended by a filtered input 
 * ``Gamma_k`` is the read-out of Everett table ``k`` (all tables on one grid of levels);
 * ``v`` (V/s) is a causal first-order low-pass of the input rate ``|du/dt|`` with time
   constant ``tau`` (s); ``tau = 0`` uses the rate of the last step;
-* ``b_k`` are hat functions of linear interpolation in ``ln v`` on the rate knots ``v_0 < ... <
-  v_{K-1}`` (V/s), constant outside them (below ``v_0`` only table 0 counts, above ``v_{K-1}``
-  only the last): a partition of unity, so at a constant rate the model *is* the classical one
-  with the blended table ``sum_k b_k(v) E_k``, and with one table it is the classical model.
+* ``b_k`` are hat functions of linear interpolation on the rate knots ``v_0 < ... < v_{K-1}``
+  (V/s), in ``ln v`` (``scale="log"``) or in ``v`` (``scale="linear"``), constant outside them
+  (below ``v_0`` only table 0 counts, above ``v_{K-1}`` only the last): a partition of unity, so
+  at a constant rate the model *is* the classical one with the blended table ``sum_k b_k(v)
+  E_k``, and with one table it is the classical model.
+
+**Which scale.**  Between knots the data decide.  The thesis's three SS15 surfaces (Table 3.1)
+say the Everett function is close to linear in the rate itself: the 2 Hz surface is nearest
+(rms over the nodes, 21 or 201 levels) to the blend 0.34 of the way from the 1 Hz to the 4 Hz
+surface, where interpolation in ``v`` puts 800 V/s at 1/3 (1.02x the best blend's distance)
+and interpolation in ``ln v`` at 1/2 (6.8x).  :func:`~preisach.identify.rate.identify_rate` chooses
+the scale by cross-validation when the data cover rates between the knots, and ``"linear"``
+when they cannot tell.  The built-in ``"ss15-rate"`` keeps ``"log"`` by default (its knots hold
+all three measured surfaces, so the scales differ only between them).
 
 A held input lets ``v`` decay to 0, so the output relaxes (with ``tau``) from the read-out of
 the table of the last rate to that of the slowest table - a creep-like settling whose size is
@@ -57,6 +67,7 @@ from .model import (
 
 __all__ = [
     "BUILTIN_RATE_MODELS",
+    "RATE_SCALES",
     "SS15_RATE_TAU",
     "RateDependentPreisachModel",
     "RateSimulationResult",
@@ -67,9 +78,13 @@ __all__ = [
 PathLike = Union[str, "os.PathLike[str]"]
 
 _FORMAT = "preisach-rate-model"
-_FORMAT_VERSION = 1
+#: Version 2 adds the field ``scale``; a model with the default ``"log"`` scale is written as
+#: version 1 (readable by older packages), version-1 files load with ``"log"``.
+_FORMAT_VERSION = 2
 _FIELDS = ("format", "version", "levels", "everett", "y_min", "knots", "tau", "info")
 _POLICIES = ("clamp", "raise")
+#: Coordinates the basis can interpolate in between knots (module docstring).
+RATE_SCALES: tuple[str, ...] = ("log", "linear")
 
 #: Rate-filter time constant (s) of the built-in ``"ss15-rate"``: long enough that a 1-4 Hz
 #: sinusoid of the initialisation waveforms reads as its mean rate ``4 u_hat f`` (the ripple of
@@ -142,6 +157,12 @@ class RateState:
             return cls(state_from_dict(data["boundary"]), float(data["rate"]))
         except (KeyError, TypeError) as exc:
             raise ValueError(f"rate state: malformed description ({exc!r})") from exc
+
+
+def _check_scale(scale: str) -> str:
+    if scale not in RATE_SCALES:
+        raise ValueError(f"scale: expected one of {RATE_SCALES}, got {scale!r}")
+    return scale
 
 
 def _as_rate_state(state: RateState | State | None, default: RateState) -> RateState:
@@ -231,6 +252,8 @@ class RateDependentPreisachModel:
         models: Sequence[PreisachModel],
         rates: ArrayLike,
         tau: float,
+        *,
+        scale: str = "log",
         **kwargs: Any,
     ) -> RateDependentPreisachModel:
         """Blend classical models identified at the given rates.
@@ -244,6 +267,8 @@ class RateDependentPreisachModel:
             of each identification frequency.
         tau : float
             Time constant (s) of the rate filter; 0 uses the rate of the last step.
+        scale : {"log", "linear"}
+            Interpolate between the rates in ``ln v`` or in ``v`` (module docstring).
         **kwargs
             Passed to the constructor.
 
@@ -255,13 +280,20 @@ class RateDependentPreisachModel:
                 f"models[{bad[0]}]: expected a PreisachModel, got {type(ms[bad[0]]).__name__}"
             )
         r = np.atleast_1d(np.asarray(rates, dtype=float))
-        core = _core.RateDependentModel([m.table for m in ms], [float(x) for x in r], float(tau))
+        core = _core.RateDependentModel(
+            [m.table for m in ms], [float(x) for x in r], float(tau), _check_scale(scale)
+        )
         kwargs.setdefault("metadata", {"source": "models", "names": [m.name for m in ms]})
         return cls(core, **kwargs)
 
     @classmethod
     def builtin(
-        cls, name: str = "ss15-rate", levels: ArrayLike | int = 201, *, tau: float = SS15_RATE_TAU
+        cls,
+        name: str = "ss15-rate",
+        levels: ArrayLike | int = 201,
+        *,
+        tau: float = SS15_RATE_TAU,
+        scale: str = "log",
     ) -> RateDependentPreisachModel:
         """Return the SS15 rate-dependent model: the Table 3.1 surfaces at their sweep rates.
 
@@ -278,6 +310,8 @@ class RateDependentPreisachModel:
             Grid of the tables (default 201 levels, 1 V apart).
         tau : float
             Rate-filter time constant (s), default :data:`SS15_RATE_TAU`.
+        scale : {"log", "linear"}
+            Interpolation between the knots (module docstring).
 
         """
         key = name.lower()
@@ -293,6 +327,7 @@ class RateDependentPreisachModel:
             models,
             [triangle_rate(f) for f in freqs],
             tau,
+            scale=scale,
             name=key,
             metadata={"builtin": key, "tables": names, "frequencies_hz": list(freqs)},
         )
@@ -313,6 +348,11 @@ class RateDependentPreisachModel:
     def tau(self) -> float:
         """Rate-filter time constant (s)."""
         return float(self._core.tau)
+
+    @property
+    def scale(self) -> str:
+        """Coordinate of the interpolation between knots: ``"log"`` (ln v) or ``"linear"``."""
+        return str(self._core.scale)
 
     @property
     def n_tables(self) -> int:
@@ -570,7 +610,7 @@ class RateDependentPreisachModel:
         tables = self._core.tables
         arrays: dict[str, Any] = {
             "format": np.array(_FORMAT),
-            "version": np.array(_FORMAT_VERSION),
+            "version": np.array(1 if self.scale == "log" else _FORMAT_VERSION),
             "levels": self.levels,
             "everett": np.stack([np.asarray(t.values) for t in tables]),
             "y_min": np.array([t.y_min for t in tables], dtype=float),
@@ -578,6 +618,8 @@ class RateDependentPreisachModel:
             "tau": np.array(self.tau),
             "info": np.array(info),
         }
+        if self.scale != "log":
+            arrays["scale"] = np.array(self.scale)
         atomic_write(path, lambda f: np.savez(f, **arrays), binary=True, what="model")
 
     @classmethod
@@ -624,6 +666,7 @@ class RateDependentPreisachModel:
                     y_min = np.asarray(data["y_min"], dtype=float)
                     knots = np.asarray(data["knots"], dtype=float)
                     tau = float(data["tau"])
+                    scale = str(data["scale"]) if "scale" in data.files else "log"
                     meta = json.loads(str(data["info"]))
                     if not isinstance(meta, dict):
                         raise ValueError(f"{p}: damaged model file: 'info' is not a JSON object")
@@ -637,7 +680,7 @@ class RateDependentPreisachModel:
             if everett.ndim != 3 or y_min.shape != (everett.shape[0],):
                 raise ValueError("everett must be (K, n, n) with one y_min per table")
             tables = [_core.EverettTable(levels, e, float(y)) for e, y in zip(everett, y_min)]
-            core = _core.RateDependentModel(tables, [float(x) for x in knots], tau)
+            core = _core.RateDependentModel(tables, [float(x) for x in knots], tau, scale)
             return cls(
                 core,
                 name=str(meta.get("name", "")),
@@ -652,13 +695,16 @@ class RateDependentPreisachModel:
             "tables": list(self._core.tables),
             "knots": [float(x) for x in self.knots],
             "tau": self.tau,
+            "scale": self.scale,
             "name": self.name,
             "metadata": self.metadata,
             "out_of_range": self.out_of_range,
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
-        self._core = _core.RateDependentModel(state["tables"], state["knots"], state["tau"])
+        self._core = _core.RateDependentModel(
+            state["tables"], state["knots"], state["tau"], state.get("scale", "log")
+        )
         self.name = state["name"]
         self.metadata = state["metadata"]
         self.out_of_range = state["out_of_range"]
@@ -670,6 +716,7 @@ class RateDependentPreisachModel:
         return (
             np.array_equal(self.knots, other.knots)
             and self.tau == other.tau
+            and self.scale == other.scale
             and len(a) == len(b)
             and all(
                 np.array_equal(np.asarray(x.levels), np.asarray(z.levels))
@@ -692,5 +739,6 @@ class RateDependentPreisachModel:
         knots = ", ".join(f"{v:g}" for v in self.knots)
         return (
             f"RateDependentPreisachModel({nm}{self.n_tables} tables at [{knots}] V/s, "
-            f"tau={self.tau:g} s, {len(self.levels)} levels on [{self.u_min:g}, {self.u_max:g}] V)"
+            f"tau={self.tau:g} s, {self.scale} scale, {len(self.levels)} levels on "
+            f"[{self.u_min:g}, {self.u_max:g}] V)"
         )

@@ -20,7 +20,16 @@ released) per cross-validation fold, and solved here:
   model, ``lambda_r -> 0`` independent tables;
 * both weights are dimensionless (scaled by the trace of the Gram matrix) and chosen by K-fold
   cross-validation over contiguous blocks of every recording (each fold holds a part of every
-  rate), the held-out error from the fold's normal equations.
+  rate), the held-out error from the fold's normal equations;
+* the **rate filter's time constant** ``tau`` is chosen by the same cross-validation from a
+  grid (:data:`TAUS`; the normal equations are accumulated once per ``tau``), and so is the
+  **interpolation scale** between knots (``ln v`` or ``v``) when the data have rates between
+  the knots (:data:`MIN_BETWEEN`); recordings only at the knots' rates cannot tell the scales
+  apart, and the model then interpolates in ``v``, which the thesis's three SS15 surfaces
+  support (:mod:`preisach.rate_model`).  With sweeps at two rates the scale is what decides the
+  prediction at a third: a 2 Hz sweep predicted from 1 and 4 Hz sweeps of ``ss15-rate`` has
+  5 mV rms error interpolating in ``v`` against 29 mV in ``ln v``
+  (``scripts/rate_heldout_study.py``).
 
 Knots: by default one per distinct rate of the recordings - the mean ``|du/dt|`` of each
 recording over the samples where its input moves (``4 u_hat f`` for a full-range triangle or an
@@ -46,7 +55,7 @@ from threadpoolctl import threadpool_limits
 from .. import _core
 from ..initial_state import burn_in_end
 from ..model import State
-from ..rate_model import SS15_RATE_TAU, RateDependentPreisachModel, RateState
+from ..rate_model import RATE_SCALES, RateDependentPreisachModel, RateState
 from .lsq import cumulative_matrix, roughness_matrix, solve_nonnegative_qp
 
 __all__ = ["RateIdentificationReport", "identify_rate", "recording_rates"]
@@ -54,6 +63,11 @@ __all__ = ["RateIdentificationReport", "identify_rate", "recording_rates"]
 #: Smoothness weights tried by cross-validation (dimensionless).
 LAMBDAS_SMOOTH: tuple[float, ...] = (1e-4, 1e-2, 1.0, 1e2)
 LAMBDAS_RATE: tuple[float, ...] = (1e-6, 1e-4, 1e-2, 1.0, 1e2)
+#: Rate-filter time constants (s) tried by cross-validation.
+TAUS: tuple[float, ...] = (0.03, 0.1, 0.25, 0.5, 1.0)
+#: Fraction of the fitted samples between the knots from which the interpolation scale is
+#: cross-validated (below it the data cannot tell the scales apart: ``"linear"``).
+MIN_BETWEEN = 0.1
 #: Largest grid identify_rate accepts (dense normal equations of K (n (n-1)/2 + 1) unknowns).
 MAX_RATE_LEVELS = 41
 
@@ -121,6 +135,18 @@ class RateIdentificationReport:
         Whether ``mu >= 0`` was imposed on every table.
     warnings : list of str
     timings : dict
+    scale : str
+        Interpolation between knots, ``"log"`` or ``"linear"``.
+    taus : ndarray
+        Rate-filter time constants tried (s).
+    scales : tuple of str
+        Scales tried.
+    cv_tau_scale : ndarray, shape (len(taus), len(scales))
+        Cross-validated rms error (V) of each ``(tau, scale)`` at the smoothness pair of the
+        first search step (see :func:`identify_rate`).
+    fraction_between : float
+        Fraction of the fitted samples with rates between the knots (more than 5 % from
+        both): the data that tell how the model behaves between the knots.
 
     """
 
@@ -139,14 +165,38 @@ class RateIdentificationReport:
     nonnegative: bool
     warnings: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    scale: str = "log"
+    taus: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    scales: tuple[str, ...] = ()
+    cv_tau_scale: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    fraction_between: float = float("nan")
 
     def summary(self) -> str:
         """Human-readable summary (several lines)."""
         lines = [
             f"rate-dependent least squares: {len(self.knots)} tables at "
             + ", ".join(f"{k:.4g}" for k in self.knots)
-            + f" V/s (rate filter tau = {self.tau:g} s), {self.n_samples} samples, "
-            f"{self.n_params} unknowns, mu >= 0: {self.nonnegative}",
+            + f" V/s ({self.scale} scale, rate filter tau = {self.tau:g} s), "
+            f"{self.n_samples} samples, {self.n_params} unknowns, mu >= 0: {self.nonnegative}",
+        ]
+        if self.cv_tau_scale.size > 1:
+            cells = ", ".join(
+                f"{t:g} s {sc} {self.cv_tau_scale[i, j] * 1e3:.3f}"
+                for i, t in enumerate(self.taus)
+                for j, sc in enumerate(self.scales)
+            )
+            lines.append(f"cross-validated rms (mV) per tau and scale: {cells}")
+        if math.isfinite(self.fraction_between):
+            if len(self.scales) > 1:
+                how = "scale cross-validated"
+            elif self.fraction_between < MIN_BETWEEN:
+                how = f"{self.scale} scale: too few to cross-validate it"
+            else:
+                how = f"{self.scale} scale as given"
+            lines.append(
+                f"samples with rates between the knots: {100 * self.fraction_between:.1f} % ({how})"
+            )
+        lines += [
             f"cross-validation chose lambda_smooth = {self.chosen[0]:g}, lambda_rate = "
             f"{self.chosen[1]:g} (cv rms {float(np.min(self.cv_rms)) * 1e3:.3f} mV); fit rms "
             f"{self.fit_rms * 1e3:.3f} mV",
@@ -176,6 +226,11 @@ class RateIdentificationReport:
             "method": "rate",
             "knots": [float(x) for x in self.knots],
             "tau": self.tau,
+            "scale": self.scale,
+            "taus": [float(x) for x in self.taus],
+            "scales": list(self.scales),
+            "cv_tau_scale": self.cv_tau_scale.tolist(),
+            "fraction_between": self.fraction_between,
             "coverage": self.coverage,
             "residuals": self.residuals,
             "band_residuals": self.band_residuals,
@@ -221,12 +276,50 @@ def _solve(
     return x
 
 
+def _fraction_between_knots(vs: Sequence[NDArray[np.float64]], knots: NDArray[np.float64]) -> float:
+    """Fraction of the samples whose rate lies between two knots, more than 5 % from both."""
+    v = np.concatenate(list(vs)) if vs else np.zeros(0)
+    if v.size == 0:
+        return 0.0
+    inside = np.zeros(v.size, dtype=bool)
+    for a, b in zip(knots[:-1], knots[1:]):
+        inside |= (v > 1.05 * a) & (v < b / 1.05)
+    return float(np.mean(inside))
+
+
+def _grid(
+    name: str, value: float | Sequence[float] | None, default: Sequence[float]
+) -> NDArray[np.float64]:
+    g = np.atleast_1d(np.asarray(default if value is None else value, dtype=float))
+    if g.size == 0 or g.ndim != 1 or np.any(~np.isfinite(g)) or np.any(g < 0):
+        raise ValueError(f"{name}: need one value or a grid of finite values >= 0, got {value!r}")
+    return g
+
+
+def _cv_errors(
+    Gx: NDArray[np.float64],
+    bx: NDArray[np.float64],
+    yy: NDArray[np.float64],
+    pens: Sequence[NDArray[np.float64]],
+    mask: NDArray[np.bool_] | None,
+) -> NDArray[np.float64]:
+    """Held-out sum of squares (V^2, summed over folds) of each penalty, fold by fold."""
+    Gtot, btot = Gx.sum(axis=0), bx.sum(axis=0)
+    out = np.zeros(len(pens))
+    for i, pen in enumerate(pens):
+        for f in range(Gx.shape[0]):
+            x = _solve(Gtot - Gx[f] + pen, btot - bx[f], mask)
+            out[i] += max(float(x @ Gx[f] @ x - 2.0 * x @ bx[f] + yy[f]), 0.0)
+    return out
+
+
 def identify_rate(
     recordings: Sequence[Any],
     levels: ArrayLike | int = 21,
     *,
     knots: ArrayLike | None = None,
-    tau: float = SS15_RATE_TAU,
+    tau: float | Sequence[float] | None = None,
+    scale: str | None = None,
     folds: int = 4,
     lambdas_smooth: Sequence[float] = LAMBDAS_SMOOTH,
     lambdas_rate: Sequence[float] = LAMBDAS_RATE,
@@ -241,16 +334,23 @@ def identify_rate(
     recordings : sequence of Recording
         Each with ``u`` (V), ``y`` (V) and a uniform sample time (``rec.sample_time``).  Any
         excitation: FOD sweeps, triangles, sines, noise.  Every recording is simulated from
-        negative saturation and at rest; samples before its burn-in end (the first
-        saturation, or the visit of both its own extremes,
-        :func:`~preisach.identify.lsq.burn_in_end`) and before ``3 tau`` are not fitted.
+        negative saturation and at rest (filtered rate 0); samples before its burn-in end (the
+        first saturation, or the visit of both its own extremes,
+        :func:`~preisach.identify.lsq.burn_in_end`) and before ``3 tau`` (the smallest ``tau``
+        tried) are not fitted.
     levels : int or array_like
         Grid of the tables: a number of levels over ``u_range`` or the levels (V).  At most
         :data:`MAX_RATE_LEVELS`.
     knots : array_like, optional
         Rate knots (V/s).  Default: one per distinct mean rate of the recordings (module doc).
-    tau : float
-        Rate-filter time constant (s).
+    tau : float or sequence of float, optional
+        Rate-filter time constant (s): one value is used as given; a grid (default
+        :data:`TAUS`) is searched by cross-validation.
+    scale : {"log", "linear"}, optional
+        Interpolation between knots (:mod:`preisach.rate_model`).  Default: chosen by
+        cross-validation when at least :data:`MIN_BETWEEN` of the fitted samples have rates
+        between the knots; otherwise ``"linear"``, which the thesis's three surfaces support
+        (recordings at the knots' rates only cannot tell the scales apart).
     folds : int
         Cross-validation folds (contiguous blocks of every recording).
     lambdas_smooth, lambdas_rate : sequence of float
@@ -272,6 +372,13 @@ def identify_rate(
     ValueError
         Fewer than two distinct rates, too many levels, bad parameters or recordings.
 
+    Notes
+    -----
+    The search: the smoothness pair on the first ``(tau, scale)`` candidate (the middle
+    ``tau``, linear), then every ``(tau, scale)`` at that pair, then the smoothness pair again
+    at the chosen ``(tau, scale)``; every error is the K-fold held-out error of the same
+    samples.
+
     """
     t_start = time.perf_counter()
     recs = list(recordings)
@@ -281,8 +388,9 @@ def identify_rate(
     if isinstance(folds, bool) or int(folds) != folds or folds < 2:
         raise ValueError(f"folds: need an integer >= 2 for cross-validation, got {folds!r}")
     folds = int(folds)
-    if not (math.isfinite(tau) and tau >= 0):
-        raise ValueError(f"tau: the rate-filter time constant must be >= 0 s, got {tau!r}")
+    taus = _grid("tau", tau, TAUS)
+    if scale is not None and scale not in RATE_SCALES:
+        raise ValueError(f"scale: expected one of {RATE_SCALES} or None, got {scale!r}")
     us = [np.ascontiguousarray(r.u, dtype=float) for r in recs]
     ys = [np.ascontiguousarray(r.y, dtype=float) for r in recs]
     dts = [float(r.sample_time) for r in recs]
@@ -311,8 +419,10 @@ def identify_rate(
     if np.any(np.diff(lv) <= 0):
         raise ValueError("levels: must be strictly increasing")
     lo, hi = float(lv[0]), float(lv[-1])
-    # rates the recordings cover
-    vs = [recording_rates(np.clip(u, lo, hi), dt, tau) for u, dt in zip(us, dts)]
+    ls = np.asarray(list(lambdas_smooth), dtype=float)
+    lr = np.asarray(list(lambdas_rate), dtype=float)
+    if ls.size == 0 or lr.size == 0 or np.any(ls < 0) or np.any(lr < 0):
+        raise ValueError("lambdas_smooth, lambdas_rate: need non-empty grids of values >= 0")
     means = [_moving_rate(np.clip(u, lo, hi), dt) for u, dt in zip(us, dts)]
     kn = _default_knots(means) if knots is None else np.atleast_1d(np.asarray(knots, float))
     if kn.size < 2:
@@ -325,17 +435,13 @@ def identify_rate(
         raise ValueError("knots: need strictly increasing positive rates (V/s)")
     K = kn.size
     p1 = n * (n - 1) // 2 + 1
-    P = K * p1
-    G = np.zeros((folds, P, P))
-    b = np.zeros((folds, P))
-    yy = np.zeros(folds)
-    cnt = np.zeros(folds, dtype=np.int64)
     s_neg = State.negative_saturation(lo, hi)
+    # the same samples for every candidate: after the burn-in and 3 x the smallest tau
+    folds_of: list[NDArray[np.int32]] = []
     fitted_from: list[int] = []
-    t0 = time.perf_counter()
-    for nm, u, y, dt in zip(names, us, ys, dts):
+    for nm, u, dt in zip(names, us, dts):
         start, _ = burn_in_end(u, lo, hi)
-        start = max(start, int(math.ceil(3.0 * tau / dt)))
+        start = max(start, int(math.ceil(3.0 * float(taus.min()) / dt)))
         if start >= u.size - folds:
             raise ValueError(
                 f"{nm}: too few samples after the burn-in ({u.size - start}) for {folds} folds"
@@ -343,15 +449,22 @@ def identify_rate(
         fold = -np.ones(u.size, dtype=np.int32)
         k = np.arange(u.size - start)
         fold[start:] = (k * folds // k.size).astype(np.int32)
+        folds_of.append(fold)
         fitted_from.append(start)
-        Gr, br, yr, _, cr, _, _ = _core.rate_normal_equations(
-            lv, s_neg, u, y, fold, folds, [float(x) for x in kn], float(tau), dt, 0.0, "clamp"
-        )
-        G += Gr
-        b += br
-        yy += yr
-        cnt += cr
-    t1 = time.perf_counter()
+    # the scale decides only between knots: cross-validate it where the data are there
+    between = _fraction_between_knots(
+        [
+            recording_rates(np.clip(u, lo, hi), dt, float(taus[len(taus) // 2]))[st:]
+            for u, dt, st in zip(us, dts, fitted_from)
+        ],
+        kn,
+    )
+    if scale is not None:
+        scales: tuple[str, ...] = (scale,)
+    elif between >= MIN_BETWEEN:
+        scales = ("linear", "log")
+    else:
+        scales = ("linear",)
     # to cell masses: theta_k = T x_k, T = blockdiag(C, 1)
     C = cumulative_matrix(n)
     m = C.shape[1]
@@ -359,9 +472,34 @@ def identify_rate(
     T1[: p1 - 1, :m] = C
     T1[p1 - 1, m] = 1.0
     T = np.kron(np.eye(K), T1)
+    t_eq = 0.0
+    cache: dict[tuple[float, str], tuple[Any, ...]] = {}
+
+    def equations(tv: float, sc: str) -> tuple[Any, ...]:
+        """Per-fold normal equations in cell masses for one (tau, scale), cached."""
+        nonlocal t_eq
+        key = (tv, sc)
+        if key not in cache:
+            t0 = time.perf_counter()
+            G = np.zeros((folds, K * p1, K * p1))
+            b = np.zeros((folds, K * p1))
+            yy = np.zeros(folds)
+            cnt = np.zeros(folds, dtype=np.int64)
+            for u, y, dt, fold in zip(us, ys, dts, folds_of):
+                Gr, br, yr, _, cr, _, _ = _core.rate_normal_equations(
+                    lv, s_neg, u, y, fold, folds, [float(x) for x in kn], tv, dt, 0.0, "clamp", sc
+                )
+                G += Gr
+                b += br
+                yy += yr
+                cnt += cr
+            Gx = np.einsum("ip,fij,jq->fpq", T, G, T, optimize=True)
+            bx = np.einsum("ip,fi->fp", T, b)
+            cache[key] = (Gx, bx, yy, cnt)
+            t_eq += time.perf_counter() - t0
+        return cache[key]
+
     with threadpool_limits(limits=1, user_api="blas"):
-        Gx = np.einsum("ip,fij,jq->fpq", T, G, T, optimize=True)
-        bx = np.einsum("ip,fi->fp", T, b)
         R = roughness_matrix(lv)
         Ps1 = R.T @ R
         Pint = np.zeros((K * (m + 1), K * (m + 1)))
@@ -376,28 +514,42 @@ def identify_rate(
             D[rows, kk * (m + 1) : (kk + 1) * (m + 1)] = -np.eye(m + 1)
             D[rows, (kk + 1) * (m + 1) : (kk + 2) * (m + 1)] = np.eye(m + 1)
         Prate = D.T @ D * rscale
-        Gtot, btot = Gx.sum(axis=0), bx.sum(axis=0)
-        trG = float(np.trace(Gtot))
-        s_int = trG / max(float(np.trace(Pint)), 1e-300)
-        s_rate = trG / max(float(np.trace(Prate)), 1e-300)
         nonneg = np.ones(K * (m + 1), dtype=bool)
         nonneg[m :: m + 1] = False  # y_min_k free
         mask = nonneg if nonnegative else None
-        ls = np.asarray(list(lambdas_smooth), dtype=float)
-        lr = np.asarray(list(lambdas_rate), dtype=float)
-        if ls.size == 0 or lr.size == 0 or np.any(ls < 0) or np.any(lr < 0):
-            raise ValueError("lambdas_smooth, lambdas_rate: need non-empty grids of values >= 0")
-        cv = np.zeros((ls.size, lr.size))
-        for i, a in enumerate(ls):
-            for j, c in enumerate(lr):
-                pen = a * s_int * Pint + c * s_rate * Prate
-                sse = 0.0
-                for f in range(folds):
-                    x = _solve(Gtot - Gx[f] + pen, btot - bx[f], mask)
-                    sse += max(float(x @ Gx[f] @ x - 2.0 * x @ bx[f] + yy[f]), 0.0)
-                cv[i, j] = math.sqrt(sse / max(int(cnt.sum()), 1))
+
+        def penalties(Gx: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+            trG = float(np.trace(Gx.sum(axis=0)))
+            s_int = trG / max(float(np.trace(Pint)), 1e-300)
+            s_rate = trG / max(float(np.trace(Prate)), 1e-300)
+            return [a * s_int * Pint + c * s_rate * Prate for a in ls for c in lr]
+
+        cands = [(float(tv), sc) for tv in taus for sc in scales]
+        first = (float(taus[len(taus) // 2]), scales[0])
+        n_fit = 0
+        # 1. smoothness pair at the first candidate
+        Gx, bx, yy, cnt = equations(*first)
+        n_fit = int(cnt.sum())
+        sse = _cv_errors(Gx, bx, yy, penalties(Gx), mask)
+        pair = int(np.argmin(sse))
+        # 2. every (tau, scale) at that pair
+        cv_ts = np.zeros((taus.size, len(scales)))
+        for i, tv in enumerate(taus):
+            for j, sc in enumerate(scales):
+                Gx, bx, yy, _ = equations(float(tv), sc)
+                cv_ts[i, j] = math.sqrt(
+                    _cv_errors(Gx, bx, yy, [penalties(Gx)[pair]], mask)[0] / max(n_fit, 1)
+                )
+        # ties go to the earlier candidate: the linear scale, the smaller tau
+        best = int(np.argmin(np.round(cv_ts.ravel(), 12)))
+        tau_c, scale_c = cands[best]
+        # 3. the smoothness pair again at the chosen (tau, scale)
+        Gx, bx, yy, cnt = equations(tau_c, scale_c)
+        pens = penalties(Gx)
+        cv = np.sqrt(_cv_errors(Gx, bx, yy, pens, mask) / max(n_fit, 1)).reshape(ls.size, lr.size)
         bi, bj = np.unravel_index(int(np.argmin(cv)), cv.shape)
-        pen = ls[bi] * s_int * Pint + lr[bj] * s_rate * Prate
+        pen = pens[int(bi) * lr.size + int(bj)]
+        Gtot, btot = Gx.sum(axis=0), bx.sum(axis=0)
         x = _solve(Gtot + pen, btot, mask)
         sse_fit = float(x @ Gtot @ x - 2.0 * x @ btot + yy.sum())
     t2 = time.perf_counter()
@@ -406,13 +558,16 @@ def identify_rate(
         if grid.size > 1 and idx in (0, grid.size - 1):
             edge = "smallest" if idx == 0 else "largest"
             warnings.append(f"cross-validation chose the {edge} {axis} tried ({grid[idx]:g})")
+    if taus.size > 1 and tau_c in (float(taus.min()), float(taus.max())):
+        edge = "smallest" if tau_c == float(taus.min()) else "largest"
+        warnings.append(f"cross-validation chose the {edge} tau tried ({tau_c:g} s)")
     tables = []
     for kk in range(K):
         xk = x[kk * (m + 1) : (kk + 1) * (m + 1)]
         W = np.zeros((n - 1, n - 1))
         W[np.tril_indices(n - 1)] = xk[:m]
         tables.append(_core.EverettTable.from_weights(lv, W, float(xk[m])))
-    core = _core.RateDependentModel(tables, [float(v) for v in kn], float(tau))
+    core = _core.RateDependentModel(tables, [float(v) for v in kn], tau_c, scale_c)
     model = RateDependentPreisachModel(
         core,
         name=name,
@@ -421,9 +576,12 @@ def identify_rate(
             "recordings": names,
             "lambda_smooth": float(ls[bi]),
             "lambda_rate": float(lr[bj]),
+            "tau": tau_c,
+            "scale": scale_c,
         },
     )
     # coverage and residuals: simulate the model over every recording
+    vs = [recording_rates(np.clip(u, lo, hi), dt, tau_c) for u, dt in zip(us, dts)]
     coverage, residuals = [], []
     band_sq = np.zeros(K)
     band_n = np.zeros(K, dtype=np.int64)
@@ -466,7 +624,7 @@ def identify_rate(
             )
     report = RateIdentificationReport(
         knots=kn,
-        tau=float(tau),
+        tau=tau_c,
         coverage=coverage,
         residuals=residuals,
         band_residuals=bands,
@@ -474,16 +632,21 @@ def identify_rate(
         lambdas_rate=lr,
         cv_rms=cv,
         chosen=(float(ls[bi]), float(lr[bj])),
-        fit_rms=math.sqrt(max(sse_fit, 0.0) / max(int(cnt.sum()), 1)),
-        n_samples=int(cnt.sum()),
+        fit_rms=math.sqrt(max(sse_fit, 0.0) / max(n_fit, 1)),
+        n_samples=n_fit,
         n_params=int(K * (m + 1)),
         nonnegative=bool(nonnegative),
         warnings=warnings,
         timings={
-            "normal_equations": t1 - t0,
-            "solve": t2 - t1,
+            "normal_equations": t_eq,
+            "solve": t2 - t_start - t_eq,
             "total": time.perf_counter() - t_start,
         },
+        scale=scale_c,
+        taus=taus,
+        scales=scales,
+        cv_tau_scale=cv_ts,
+        fraction_between=between,
     )
     return model, report
 
