@@ -200,3 +200,69 @@ def test_rate_plots_and_loop_width(ss15_rate) -> None:
         plot_loop_width(ss15_rate, [rec], rates=[200.0, 800.0, 3200.0]),
     ):
         assert fig.axes
+
+
+def test_linear_scale_weights_persistence_and_old_files(tmp_path) -> None:
+    m1, m2 = PreisachModel.builtin("ss15-1hz", 21), PreisachModel.builtin("ss15-4hz", 21)
+    lin = RateDependentPreisachModel.from_models([m1, m2], [400.0, 1600.0], 0.1, scale="linear")
+    log = RateDependentPreisachModel.from_models([m1, m2], [400.0, 1600.0], 0.1)
+    assert lin.scale == "linear" and log.scale == "log"
+    assert lin.weights(800.0) == pytest.approx([2 / 3, 1 / 3])  # 1/3 of the way in v
+    assert log.weights(800.0) == pytest.approx([0.5, 0.5])  # halfway in ln v
+    assert lin != log
+    lin.save(tmp_path / "lin.npz")
+    back = RateDependentPreisachModel.load(tmp_path / "lin.npz")
+    assert back == lin and back.scale == "linear"
+    assert int(np.load(tmp_path / "lin.npz")["version"]) == 2
+    assert pickle.loads(pickle.dumps(lin)) == lin
+    # a log-scale model is written as version 1, without the field, as before
+    log.save(tmp_path / "log.npz")
+    data = np.load(tmp_path / "log.npz")
+    assert int(data["version"]) == 1 and "scale" not in data.files
+    assert RateDependentPreisachModel.load(tmp_path / "log.npz") == log
+    with pytest.raises(ValueError, match="scale"):
+        RateDependentPreisachModel.from_models([m1, m2], [400.0, 1600.0], 0.1, scale="ln")
+
+
+def test_plant_with_physics_blocks_is_the_chain(ss15_rate) -> None:
+    from preisach import _core
+
+    dt = 1e-3
+    lag = {"kind": "input_lag", "time_constant": 2e-3}
+    creep = {"kind": "creep", "rate": 0.01, "tau_min": 0.1, "tau_max": 100.0}
+    plant = RatePlant(ss15_rate, dt, input_blocks=[lag], output_blocks=[creep])
+    assert plant.has_blocks
+    rng = np.random.default_rng(5)
+    u = np.cumsum(rng.normal(0, 3, 3000)).clip(-100, 100)
+    s0 = ss15_rate.anhysteretic_state()
+    plant.reset(s0)
+    y = plant.run_open_loop(u)
+    # the same as lag -> rate model -> creep, run one after the other
+    b_lag = _core.InputLag(dt, 2e-3)
+    b_lag.reset(s0.input)
+    ui = b_lag.run(u)
+    ym = ss15_rate.simulate(ui, s0, sample_time=dt).output
+    b_creep = _core.Creep(dt, 0.01, 0.1, 100.0)
+    b_creep.reset(ss15_rate.readout(s0))
+    assert np.allclose(y, b_creep.run(ym), rtol=0, atol=1e-12)
+    # the blocks change the output: not the bare model
+    assert np.max(np.abs(y - ss15_rate.simulate(u, s0, sample_time=dt).output)) > 1e-3
+    # snapshots restore exactly, the PI loop too
+    snap = plant.snapshot()
+    cfg = PIConfig(setpoint=1.0, kp=0.1, ki=3.0, sample_time=dt, input_gain=14.12)
+    a = plant.run_closed_loop(np.full(400, 10.0), cfg)
+    plant.reset(snap)
+    b = plant.run_closed_loop(np.full(400, 10.0), cfg)
+    for x, z in zip(a, b):
+        assert np.array_equal(x, z)
+    rows = np.full((2, 400), 10.0)
+    rows[1] += 1.0
+    batch = plant.run_closed_loop_batch(snap, rows, cfg)
+    assert np.array_equal(batch[1][0], a[1])
+    with pytest.raises(ValueError, match="clamp"):
+        RatePlant(ss15_rate, dt, output_blocks=[creep], out_of_range="raise")
+    with pytest.raises(ValueError, match="physics blocks"):
+        plant.slopes()
+    # the experiments run on it
+    init = drive_to_state(plant, "n", 1.0, 1.0)
+    assert abs(init.y_end - 1.0) <= 0.03

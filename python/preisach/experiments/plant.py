@@ -34,6 +34,7 @@ __all__ = [
     "ModelPlant",
     "PIConfig",
     "Plant",
+    "SimulatedPlant",
     "ss15_plants",
     "thesis_sample_time",
 ]
@@ -175,16 +176,17 @@ class Plant(Protocol):
         ...
 
 
-class ModelPlant:
-    """A Preisach model as a plant: every run is simulated in C++.
+class SimulatedPlant:
+    """What the plants simulated in C++ share (:class:`ModelPlant`, :class:`RatePlant`).
 
-    Besides the :class:`Plant` protocol it offers batched runs from one snapshot on all cores
-    (:meth:`run_open_loop_batch`, :meth:`run_closed_loop_batch`), which the sweeps use.
+    A subclass names its model class (``_model_type``), makes its step-by-step simulator
+    (:meth:`_new_simulator`) and runs its PI loop (:meth:`_closed_loop`); the checks, the
+    open-loop runs and the controller checks live here, once.
 
     Parameters
     ----------
-    model : PreisachModel
-        The model (input V, output V).
+    model
+        The model (input V, output V), an instance of the subclass's ``_model_type``.
     sample_time : float, default 1e-3
         Sampling period (s).
     threads : int, default 0
@@ -194,16 +196,22 @@ class ModelPlant:
 
     """
 
+    _model_type: type = object
+    model: Any
+    _sim: Any
+
     def __init__(
         self,
-        model: PreisachModel,
+        model: Any,
         sample_time: float = 1e-3,
         *,
         threads: int = 0,
         out_of_range: str | None = None,
     ) -> None:
-        if not isinstance(model, PreisachModel):
-            raise TypeError(f"model: expected a PreisachModel, got {type(model).__name__}")
+        if not isinstance(model, self._model_type):
+            raise TypeError(
+                f"model: expected a {self._model_type.__name__}, got {type(model).__name__}"
+            )
         if not (math.isfinite(sample_time) and sample_time > 0):
             raise ValueError(f"sample_time: must be positive (s), got {sample_time!r}")
         if threads < 0:
@@ -216,22 +224,18 @@ class ModelPlant:
             raise ValueError(
                 f"out_of_range: expected 'clamp' or 'raise', got {self.out_of_range!r}"
             )
-        self._sim = model.simulator(model.anhysteretic_state())
+        self._sim = self._new_simulator()
+
+    def _new_simulator(self) -> Any:
+        raise NotImplementedError
+
+    def _closed_loop(
+        self, u_open: NDArray[np.float64], controller: PIConfig
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        raise NotImplementedError
 
     def __repr__(self) -> str:
-        return f"ModelPlant({self.model!r}, sample_time={self._ts:g})"
-
-    def __getstate__(self) -> dict[str, Any]:
-        # The C++ simulator does not pickle; its exact state does (studies ship plants to
-        # worker processes and Dask workers).
-        d = self.__dict__.copy()
-        d["_sim"] = self._sim.state
-        return d
-
-    def __setstate__(self, d: dict[str, Any]) -> None:
-        state = d.pop("_sim")
-        self.__dict__.update(d)
-        self._sim = self.model.simulator(state)
+        return f"{type(self).__name__}({self.model!r}, sample_time={self._ts:g})"
 
     @property
     def sample_time(self) -> float:
@@ -241,20 +245,12 @@ class ModelPlant:
     @property
     def input_range(self) -> tuple[float, float]:
         """``(u_min, u_max)`` of the model (V)."""
-        return (self.model.u_min, self.model.u_max)
+        return (float(self.model.u_min), float(self.model.u_max))
 
     @property
     def output(self) -> float:
         """Current output (V)."""
         return float(self._sim.output)
-
-    def reset(self, state: State | None = None) -> None:
-        """Set the model's state (default: the anhysteretic state)."""
-        self._sim.reset(self.model.anhysteretic_state() if state is None else state)
-
-    def snapshot(self) -> State:
-        """Return the current state (exact)."""
-        return self._sim.state
 
     def slopes(self) -> Slopes:
         """One-sided dy/du (V/V) at the current state (Appendix A)."""
@@ -265,7 +261,7 @@ class ModelPlant:
         uu = np.ascontiguousarray(u, dtype=float)
         if uu.ndim != 1:
             raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
-        return self._sim.run(uu, self.out_of_range)
+        return np.asarray(self._sim.run(uu, self.out_of_range))
 
     def _check(self, controller: PIConfig) -> None:
         if not isinstance(controller, PIConfig):
@@ -284,10 +280,69 @@ class ModelPlant:
         uu = np.ascontiguousarray(u_open, dtype=float)
         if uu.ndim != 1:
             raise ValueError(f"u_open: expected a 1-D array, got shape {uu.shape}")
-        u, y, uc = _core.closed_loop(
-            self._sim, uu, out_of_range=self.out_of_range, **controller.core_kwargs()
+        return self._closed_loop(uu, controller)
+
+    def _rows(self, u_open: ArrayLike, controller: PIConfig) -> NDArray[np.float64]:
+        """Check a batch of loop runs: the controller and a 2-D ``u_open`` (runs, samples)."""
+        self._check(controller)
+        uu = np.ascontiguousarray(u_open, dtype=float)
+        if uu.ndim != 2:
+            raise ValueError(f"u_open: expected a 2-D array (runs, samples), got shape {uu.shape}")
+        return uu
+
+
+class ModelPlant(SimulatedPlant):
+    """A Preisach model as a plant: every run is simulated in C++.
+
+    Besides the :class:`Plant` protocol it offers batched runs from one snapshot on all cores
+    (:meth:`run_open_loop_batch`, :meth:`run_closed_loop_batch`), which the sweeps use.
+
+    Parameters
+    ----------
+    model : PreisachModel
+        The model (input V, output V).
+    sample_time : float, default 1e-3
+        Sampling period (s).
+    threads : int, default 0
+        Worker threads of the batched runs; 0 uses every core.
+    out_of_range : {"clamp", "raise"}, optional
+        Policy for inputs outside the model range; default the model's.
+
+    """
+
+    _model_type = PreisachModel
+    model: PreisachModel
+    _sim: _core.Simulator
+
+    def _new_simulator(self) -> _core.Simulator:
+        return self.model.simulator(self.model.anhysteretic_state())
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The C++ simulator does not pickle; its exact state does (studies ship plants to
+        # worker processes and Dask workers).
+        d = self.__dict__.copy()
+        d["_sim"] = self._sim.state
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        state = d.pop("_sim")
+        self.__dict__.update(d)
+        self._sim = self.model.simulator(state)
+
+    def reset(self, state: State | None = None) -> None:
+        """Set the model's state (default: the anhysteretic state)."""
+        self._sim.reset(self.model.anhysteretic_state() if state is None else state)
+
+    def snapshot(self) -> State:
+        """Return the current state (exact)."""
+        return self._sim.state
+
+    def _closed_loop(
+        self, u_open: NDArray[np.float64], controller: PIConfig
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        return _core.closed_loop(
+            self._sim, u_open, out_of_range=self.out_of_range, **controller.core_kwargs()
         )
-        return u, y, uc
 
     def run_open_loop_batch(self, state: State, u: ArrayLike) -> NDArray[np.float64]:
         """Every row of ``u`` (V) from ``state`` on all cores; returns the outputs (V)."""
@@ -300,14 +355,10 @@ class ModelPlant:
         self, state: State, u_open: ArrayLike, controller: PIConfig
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """Run the PI loop for every row of ``u_open`` (V) from ``state``, on all cores."""
-        self._check(controller)
-        uu = np.ascontiguousarray(u_open, dtype=float)
-        if uu.ndim != 2:
-            raise ValueError(f"u_open: expected a 2-D array (runs, samples), got shape {uu.shape}")
         u, y, uc, _ = _core.closed_loop_batch(
             self.model.table,
             [state],
-            uu,
+            self._rows(u_open, controller),
             out_of_range=self.out_of_range,
             threads=self.threads,
             **controller.core_kwargs(),
