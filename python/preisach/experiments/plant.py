@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -196,7 +196,7 @@ class SimulatedPlant:
 
     """
 
-    _model_type: type = object
+    _model_type: ClassVar[type[Any]] = object
     model: Any
     _sim: Any
 
