@@ -472,6 +472,40 @@ def test_unknown_initial_state_is_a_nuisance_not_a_mask():
     assert old.start == "anhysteretic"
 
 
+def test_start_up_ring_is_evidence_not_masked():
+    """A recording that starts with a step from 0 V to a range end rings on the rig's mode.
+
+    As in issue 13's stack recording (5 kHz, a ~1 kHz ring for ~10 ms after the first step):
+    every sample is scored, and the ring is named or localised at the start - not masked
+    (verdict ``none``) and not called a drift.
+    """
+    from preisach.daq.blocks import BlockChain, make_block, preisach_stage
+
+    m = PreisachModel.builtin("ss15-1hz", levels=41)
+    dt = 2e-4
+    t = np.arange(2000) * dt
+    u = np.interp(t, [0, dt, 0.1, 0.25, 0.4], [0.0, -100.0, -100.0, 100.0, -100.0])
+    chain = BlockChain(
+        [
+            preisach_stage(m, m.anhysteretic_state(), dt, 0.0),
+            make_block({"kind": "structural_mode", "frequency": 1000.0, "damping": 0.02}, dt),
+        ]
+    )
+    chain.reset(0.0)
+    y = np.asarray(chain.run(u)) + np.random.default_rng(4).normal(0, 1e-3, t.size)
+    rec = Recording.from_arrays(t=t, u=u, y=y, experiment="step_start")
+    (prep,) = prepare_recordings(m, [rec])
+    assert prep.start.startswith("unknown") and prep.usable.all()
+    rep = diagnose(
+        m, [rec], candidates=["structural_resonance", "sensor_drift", "creep"], progress=False
+    )
+    assert rep.verdict in ("structural_resonance", "unexplained"), rep.summary()
+    if rep.verdict == "unexplained":
+        assert rep.unexplained is not None
+        when = rep.unexplained["where"]["time_s"]
+        assert when["at_start"] and when["to"] < 0.05, rep.unexplained["statement"]
+
+
 def test_drift_that_follows_the_steps_is_not_a_drift():
     """The drift test: a slow response to the output's moves is creep-like, a ramp is not."""
     from preisach.diagnose.context import Chain, Context, signal_lag

@@ -338,7 +338,8 @@ class ModeCandidate(Candidate):
         # scan f_n on a 4 % grid and a few dampings; the participation is linear: project on it
         prob = ctx._problem
         fmax = 0.4 / ctx.dt_min
-        grid = np.geomspace(2.0, fmax, int(np.log(fmax / 2.0) / np.log(1.06)) + 1)
+        # (at least two points: a FORC file's 0.2 s samples leave no band above 2 Hz)
+        grid = np.geomspace(2.0, fmax, max(2, int(np.log(fmax / 2.0) / np.log(1.06)) + 1))
         if prob is None:  # pragma: no cover - only called inside a fit
             return [np.array([grid[len(grid) // 2], 0.05, 0.1])]
         found = []

@@ -25,7 +25,7 @@ from .. import _core
 from .._resources import check_allocation
 from ..model import PreisachModel
 from .candidates import Candidate
-from .data import Rec
+from .data import History, Rec, state_options
 from .effects import OutputFeedback
 
 if TYPE_CHECKING:
@@ -48,11 +48,17 @@ class FittedEffect:
 
 @dataclass
 class Base:
-    """The Preisach part of a chain: the given model (``theta is None``) or refitted weights."""
+    """The Preisach part of a chain: the given model (``theta is None``) or refitted weights.
+
+    ``states`` maps a recording whose initial state is unknown to the input history chosen
+    for this base (absent: the recording's own, the given model's choice); see
+    :meth:`Context.choose_states`.
+    """
 
     theta: Array | None = None
     table: Any = None
     cache: dict[int, Array] = field(default_factory=dict, repr=False)
+    states: dict[int, History] = field(default_factory=dict)
 
 
 @dataclass
@@ -138,6 +144,7 @@ class Context:
         allr = np.concatenate(rates) if rates else np.zeros(0)
         self.reference_rate = float(np.median(allr)) if allr.size else 1.0
         self._basis: dict[int, Array] = {}
+        self._states_seen: dict[int, Any] = {}
         self._anh: dict[Any, Any] = {}
         self._problem: Problem | None = None
         self._last_problem: Any = None
@@ -154,8 +161,8 @@ class Context:
             e = model.everett(a, np.minimum(a, b))
             self._ii, self._jj = np.tril_indices(n, -1)
             self.theta0 = np.concatenate([e[self._ii, self._jj], [model.y_min]])
-            self._R: dict[int, sp.csr_matrix] = {}
-            self._normal_cache: dict[tuple[int, bytes, bool], tuple[Any, Any]] = {}
+            self._R: dict[tuple[int, int], sp.csr_matrix] = {}
+            self._normal_cache: dict[tuple[int, int, bytes, bool], tuple[Any, Any]] = {}
 
     # -- base model -------------------------------------------------------------------------
     def table(self, base: Base) -> Any:
@@ -169,33 +176,69 @@ class Context:
             base.table = _core.EverettTable(self.levels, v, float(base.theta[-1]))
         return base.table
 
+    def history(self, i: int, base: Base) -> History | None:
+        """Input history before recording ``i`` under ``base`` (None: a known initial state)."""
+        return base.states.get(i, self.recs[i].history)
+
+    def state(self, i: int, base: Base, x: Array | None = None) -> Any:
+        """Return the initial state of recording ``i`` under ``base`` for the relay input ``x`` (V).
+
+        A known initial state is the recording's ``state0``; an unknown one is the base's
+        chosen history (:meth:`choose_states`) for the input the relays see (default the
+        recording's input).
+        """
+        r = self.recs[i]
+        h = self.history(i, base)
+        if h is None:
+            return r.state0
+        if x is None:
+            if h is r.history:
+                return r.state0
+            x = r.u
+        return h.state(x)
+
+    def _history_key(self, i: int, base: Base) -> int:
+        """Return a cache key for the history of recording ``i``: its identity (kept alive)."""
+        h = self.history(i, base)
+        self._states_seen.setdefault(id(h), h)
+        return id(h)
+
     def preisach(self, i: int, base: Base, u: Array | None = None) -> Array:
         """Return the Preisach output (V) of recording ``i`` for its input (or ``u``)."""
         r = self.recs[i]
         if u is None:
             if i not in base.cache:
-                base.cache[i] = _core.simulate(self.table(base), r.u, r.state0, "clamp")[0]
+                base.cache[i] = _core.simulate(self.table(base), r.u, self.state(i, base), "clamp")[
+                    0
+                ]
             return base.cache[i]
-        return _core.simulate(self.table(base), u, r.state0, "clamp")[0]
+        return _core.simulate(self.table(base), u, self.state(i, base, u), "clamp")[0]
 
-    def regressor(self, i: int, u: Array | None = None) -> sp.csr_matrix:
-        """Sparse map from the refit weights ``theta`` to the Preisach output of recording ``i``."""
+    def regressor(self, i: int, u: Array | None = None, base: Base | None = None) -> sp.csr_matrix:
+        """Sparse map from the refit weights ``theta`` to the Preisach output of recording ``i``.
+
+        The relays start from the initial state of recording ``i`` under ``base`` (default:
+        the recording's ``state0``).
+        """
         r = self.recs[i]
-        if u is None and i in self._R:
-            return self._R[i]
-        indptr, idx, data, _ = _core.regressor_rows(
-            self.levels, r.u if u is None else u, r.state0, "clamp"
-        )
+        b = base if base is not None else self.given
+        key = (i, self._history_key(i, b))
+        if u is None and key in self._R:
+            return self._R[key]
+        x = r.u if u is None else u
+        indptr, idx, data, _ = _core.regressor_rows(self.levels, x, self.state(i, b, u), "clamp")
         R = sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(r.n, self.n_theta))
         if u is None:
-            self._R[i] = R
+            self._R[key] = R
         return R
 
     def _normal(
         self, i: int, R: sp.csr_matrix, m: Mask, drift: bool, cacheable: bool
     ) -> tuple[Array, Any]:
         """``R^T R`` over the rows ``m`` (minus the drift projection), and the projection."""
-        key = (i, np.packbits(m).tobytes(), drift)
+        # cacheable regressors are the cached ones of ``regressor`` (one per initial state),
+        # kept alive in ``_R``, so their identity names them
+        key = (i, id(R), np.packbits(m).tobytes(), drift)
         if cacheable and key in self._normal_cache:
             return self._normal_cache[key]
         Rm = R[m]
@@ -277,20 +320,130 @@ class Context:
             P, ue, st = self.stage(
                 i, base, effects, None if feedback_from is None else feedback_from[i]
             )
-            Rs[i] = self.regressor(i, ue) if moved else self.regressor(i)
+            Rs[i] = self.regressor(i, ue if moved else None, base)
             targets[i] = r.y - (self.output_side(i, P, outs, st) - P) if outs else r.y
         return Rs, targets, not moved
 
     def refit_base(
-        self, effects: Sequence[FittedEffect], base: Base, train: list[Mask], drift: bool
+        self,
+        effects: Sequence[FittedEffect],
+        base: Base,
+        train: list[Mask],
+        drift: bool,
+        choose: bool = True,
     ) -> Base:
         """Least-squares Preisach weights for ``effects`` on the ``train`` samples.
 
         The output blocks are linearised about ``base``: the target is ``y - (Out(P) - P)``
-        with ``P`` the Preisach output of ``base``.
+        with ``P`` the Preisach output of ``base``.  With ``choose`` the unknown initial
+        states are then re-chosen for the refitted chain (:meth:`choose_states`) and, when
+        one changed, the weights are solved again for the new states.
         """
         Rs, targets, cacheable = self.linearised_targets(effects, base, train)
-        return Base(self.solve_theta(Rs, targets, train, drift, cacheable))
+        new = Base(self.solve_theta(Rs, targets, train, drift, cacheable), states=base.states)
+        if not choose:
+            return new
+        chosen = self.choose_states(Chain(new, list(effects)), drift).base
+        if chosen is new:
+            return new
+        Rs, targets, cacheable = self.linearised_targets(effects, chosen, train)
+        return Base(self.solve_theta(Rs, targets, train, drift, cacheable), states=chosen.states)
+
+    # -- unknown initial states: a nuisance parameter profiled for every chain -----------------
+    def choose_states(self, chain: Chain, drift: bool = False) -> Chain:
+        """Re-choose every unknown initial state for ``chain`` by least squares.
+
+        An unknown initial state is a nuisance parameter of the model it is simulated with.
+        The history chosen once with the given model (in
+        :func:`~preisach.diagnose.data.prepare_recordings`) suits that model's errors, and
+        can be far off for a candidate's refitted weights: on a recording that repeats one
+        loop the weights are determined only along that loop, and a history with turning
+        points elsewhere reads weights no sample constrains (on the yan9a recordings the
+        held-out error of an input lag went from 231 to 564 mV that way, all of it before the
+        first extreme).  So every fitted chain gets, per recording, the history of the same
+        kind (:class:`~preisach.diagnose.data.History`: within the recording's own range, or
+        from a saturation, or anhysteretic) that fits it best over the usable samples (with a
+        drift projected off when ``drift``).  Like the first choice, this uses each
+        recording's measured output: one discrete choice per recording.  The kind stays: it
+        sets the relays the input never reaches, i.e. an output offset per recording, which
+        chosen with held-out samples would take a sensor drift's place.
+
+        Returns ``chain`` itself when no history changes, else a chain with a new
+        :class:`Base` (same weights) holding the chosen histories.
+        """
+        todo = [i for i, r in enumerate(self.recs) if r.history is not None]
+        if not todo:
+            return chain
+        base = chain.base
+        changed = {}
+        for i in todo:
+            h = self._best_history(i, chain, drift)
+            if h is not self.history(i, base):
+                changed[i] = h
+        if not changed:
+            return chain
+        cache = {j: v for j, v in base.cache.items() if j not in changed}
+        return Chain(Base(base.theta, base.table, cache, {**base.states, **changed}), chain.effects)
+
+    def _best_history(self, i: int, chain: Chain, drift: bool) -> History:
+        """Return the input history before recording ``i`` that fits ``chain`` best.
+
+        The relays see the same input for every history (after the input blocks; with a
+        feedback effect, the input shifted by the feedback of the measured output, see
+        :meth:`_relays_estimate`), so the states are simulated together
+        and only until that input has visited its extremes: from then on they differ only in
+        relays the input never reaches again, so the outputs differ by a constant.
+        """
+        r = self.recs[i]
+        base = chain.base
+        effects = chain.effects
+        table = self.table(base)
+        ins = [e for e in effects if e.cand.side == "input"]
+        fb = [e for e in effects if e.cand.side == "feedback"]
+        outs = [e for e in effects if e.cand.side == "output"]
+        u = self.preisach_input(i, ins) if ins else r.u
+        # with a feedback effect, as in stage(): the input shifted by the feedback of the
+        # measured output
+        ue = self._relays_estimate(i, base, u, fb[-1]) if fb else u
+        st = Stage(i, u, table)
+        cur = self.history(i, base)
+        assert cur is not None
+        lo, hi = float(ue.min()), float(ue.max())
+        hists = [cur, *state_options(self.model, ue, cur.kind)]
+        states = [h.state(ue) for h in hists]
+        P_ref = _core.simulate(table, ue, states[0], "clamp")[0]
+        kw = 1 + max(int(np.argmax(ue >= hi)), int(np.argmax(ue <= lo)))
+        pre = np.ascontiguousarray(np.broadcast_to(ue[:kw], (len(states), kw)))
+        P_pre = _core.simulate_batch(table, pre, states, "clamp")[0]
+        shift = P_pre[:, -1] - P_ref[kw - 1]
+        m = r.usable
+        if not outs and not drift:
+            # residual e - d with d = P_state - P_ref: the prefix exactly, a constant after it
+            head = m[:kw]
+            sse = np.sum(((r.y[:kw] - P_pre) ** 2)[:, head], axis=1)
+            tail = m.copy()
+            tail[:kw] = False
+            et = (r.y - P_ref)[tail]
+            sse = sse + float(et @ et) - 2.0 * shift * float(et.sum()) + shift**2 * et.size
+        else:
+            sse = np.empty(len(states))
+            A = Ginv = None
+            if drift:
+                A = self.drift_basis(i)[m]
+                Ginv = np.linalg.inv(self._drift_system(A)[0])
+            for k in range(len(states)):
+                P = P_ref + shift[k]
+                P[:kw] = P_pre[k]
+                y = self.output_side(i, P, outs, st) if outs else P
+                res = (r.y - y)[m]
+                if A is not None and Ginv is not None:
+                    res = res - A @ (Ginv @ (A.T @ res))
+                sse[k] = float(res @ res)
+        k_best = int(np.argmin(sse))
+        # keep the current history unless another fits clearly better (no churn on ties)
+        if sse[k_best] >= sse[0] - 1e-9 * max(float(sse[0]), 1e-300):
+            return cur
+        return hists[k_best]
 
     # -- drift: a smooth function of time per recording ------------------------------------
     def drift_basis(self, i: int) -> Array:
@@ -388,15 +541,38 @@ class Context:
 
     # -- chain evaluation -----------------------------------------------------------------
     def preisach_input(self, i: int, effects: Sequence[FittedEffect]) -> Array:
-        """Return the input (V) of recording ``i`` after the input-side ``effects``, clamped."""
+        """Return the input (V) of recording ``i`` after the input-side ``effects``, clamped.
+
+        The blocks start in the state that steady motion at the recording's initial rate
+        leaves them in (:meth:`lead_in`), not at rest: a recording that starts mid-sweep
+        has its relays behind the input already (an input lag of 30 ms on a 1 Hz, 3.6 V
+        sine put the first relay input 0.3 V too high when started at rest, 3.8 V of output
+        error at the first sample of the yan9a recordings).
+        """
         r = self.recs[i]
-        x = r.u
-        for e in effects:
-            if e.cand.side == "input":
-                b = e.cand.block(e.x, r.dt)
-                b.reset(float(r.state0.input))
-                x = b.run(x)
-        return np.clip(x, self.model.u_min, self.model.u_max)
+        ins = [e for e in effects if e.cand.side == "input"]
+        if not ins:
+            return np.clip(r.u, self.model.u_min, self.model.u_max)
+        pre = self.lead_in(i)
+        x = np.concatenate([pre, r.u])
+        for e in ins:
+            b = e.cand.block(e.x, r.dt)
+            b.reset(float(x[0]))
+            x = b.run(x)
+        return np.clip(x[pre.size :], self.model.u_min, self.model.u_max)
+
+    def lead_in(self, i: int) -> Array:
+        """Input (V) assumed before recording ``i``: steady motion at its initial rate.
+
+        ``5 max_delay`` long (the input blocks' time constants are at most ``max_delay``), at
+        the median rate of the first four sample steps (a recording that starts with a step
+        and then holds gets rate 0: at rest).
+        """
+        r = self.recs[i]
+        n = int(min(max(r.n - 1, 1), math.ceil(5.0 * self.max_delay / r.dt)))
+        d = np.diff(r.u[: min(r.n, 5)])
+        step = float(np.median(d)) if d.size else 0.0
+        return float(r.u[0]) - step * np.arange(n, 0, -1, dtype=float)
 
     def stage(
         self,
@@ -423,13 +599,29 @@ class Context:
         if fb:
             if feedback_from is None:
                 blk = cast(OutputFeedback, fb[-1].cand.block(fb[-1].x, r.dt))
-                y, ue, _ = blk.simulate(table, u, r.state0)
+                # an unknown initial state is built on the relays' own input range, which the
+                # feedback moves and the closed loop gives only once simulated from that state:
+                # it is taken from the input shifted by the feedback of the measured output
+                # (the series-parallel form the feedback is fitted in; iterating the closed
+                # loop instead locked it into other periodic solutions on the yan9a data)
+                x = self._relays_estimate(i, base, u, fb[-1])
+                y, ue, _ = blk.simulate(table, u, self.state(i, base, x))
             else:
                 ue = self._fed_back(i, u, fb[-1], feedback_from)
                 y = self.preisach(i, base, ue)
             return y, ue, Stage(i, u, table)
         y = self.preisach(i, base, u if ins else None)
         return y, u, Stage(i, u, table)
+
+    def _relays_estimate(self, i: int, base: Base, u: Array, fb: FittedEffect) -> Array:
+        """Return the input (V) a feedback loop's relays see, to build an unknown initial state.
+
+        The input shifted by the feedback of the measured output (the series-parallel form
+        the feedback is fitted in); ``u`` when the initial state is known.
+        """
+        if self.history(i, base) is None:
+            return u
+        return self._fed_back(i, u, fb, self.recs[i].y)
 
     def _fed_back(self, i: int, u: Array, fb: FittedEffect, feedback_from: Array) -> Array:
         """Return the relays' input (V): ``u`` plus the feedback of the previous sample."""
@@ -541,17 +733,37 @@ class Context:
         the blocks linearised about a reference base that is updated ``alternations`` times.
         """
         if not self.refits(fixed):
-            return fixed.plus(self._fit_params(cand, fixed, train, drift, None, profile=False))
+            chain = fixed.plus(self._fit_params(cand, fixed, train, drift, None, profile=False))
+            chosen = self.choose_states(chain, drift)
+            if chosen is chain:
+                return chain
+            # the initial states changed: fit again from there with the new states
+            again = self._fit_params(
+                cand, Chain(chosen.base, fixed.effects), train, drift, [chain.effects[-1].x]
+            )
+            return self.choose_states(Chain(chosen.base, fixed.effects).plus(again), drift)
         ref = fixed.base
         starts = None
-        eff = None
+        eff: FittedEffect | None = None
+        prob = None
         for _ in range(max(1, self.alternations)):
             eff = self._fit_params(
                 cand, Chain(ref, fixed.effects), train, drift, starts, profile=True, reference=eff
             )
-            ref = Base(self._last_problem.theta(eff.x))
+            prob = self._last_problem
+            ref = Base(prob.theta(eff.x), states=ref.states)
+            # the unknown initial states are re-chosen for the candidate's chain (a nuisance
+            # parameter of every model, see choose_states); the next alternation fits with them
+            ref = self.choose_states(Chain(ref, [*fixed.effects, eff]), drift).base
             starts = [eff.x]
-        assert eff is not None
+        assert eff is not None and prob is not None
+        if ref.states != prob.fixed.base.states:  # weights for the states chosen last
+            from .problem import Problem
+
+            again = Problem(
+                self, cand, Chain(ref, fixed.effects), train, drift, profile=True, reference=eff
+            )
+            ref = Base(again.theta(eff.x), states=ref.states)
         return fixed.plus(eff, ref)
 
     def refits(self, fixed: Chain) -> bool:

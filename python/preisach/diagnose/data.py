@@ -12,10 +12,47 @@ from numpy.typing import NDArray
 from ..model import PreisachModel, State
 from ..recording import Recording
 
-__all__ = ["Rec", "noise_sigma", "prepare_recordings"]
+__all__ = ["History", "Rec", "noise_sigma", "prepare_recordings", "state_options"]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class History:
+    """An input history before a recording: it sets the unknown initial state.
+
+    ``kind`` says where it starts: ``"range"`` - the relays were driven over the recording's
+    own input range (up to its maximum, down to its minimum), as in a run that goes on the way
+    it was recorded; ``"positive"`` / ``"negative"`` - from a saturation; ``"anhysteretic"`` -
+    from the demagnetised state.  Then the relays saw the turning points ``turns`` (fractions
+    of the recording's own range: 0 its minimum, 1 its maximum) and then the recording's first
+    input.  :meth:`state` builds the state from the input the relays actually see, so an input
+    block that changes that input (a lag started mid-sweep lowers its first value and its
+    extremes) keeps the history and moves its ends with it.
+    """
+
+    label: str
+    u_range: tuple[float, float]
+    kind: str = "range"
+    turns: tuple[float, ...] = ()
+    anhysteretic: State | None = None
+
+    def state(self, x: Array) -> State:
+        """Return the relays' state after this history, for the relay input ``x`` (V) after it."""
+        first = float(x[0])
+        if self.kind == "anhysteretic" and self.anhysteretic is not None:
+            return self.anhysteretic.apply([first])
+        lo, hi = float(np.min(x)), float(np.max(x))
+        pts = [lo + f * (hi - lo) for f in self.turns] + [first]
+        if self.kind == "range":
+            pts = [hi, lo, *pts]
+        start = (
+            State.positive_saturation(*self.u_range)
+            if self.kind == "positive"
+            else State.negative_saturation(*self.u_range)
+        )
+        return start.apply(np.clip(pts, *self.u_range).tolist())
 
 
 @dataclass
@@ -33,6 +70,10 @@ class Rec:
     fold: NDArray[np.int64]
     start: str
     ident: bool = False
+    #: when the initial state is unknown: the history chosen with the given model (``state0``
+    #: is its state at the first input), a nuisance re-chosen for every fitted chain (see
+    #: :meth:`Context.choose_states`)
+    history: History | None = None
 
     @property
     def n(self) -> int:
@@ -66,49 +107,86 @@ def _burn_in(u: Array, tol: float) -> int:
     return min(u.size, second + max(1, u.size // 20))
 
 
-def _initial_state(model: PreisachModel, u: Array, y: Array) -> tuple[State, str]:
+def state_options(model: PreisachModel, x: Array, kind: str | None = None) -> list[History]:
+    """Candidate histories of up to three turns before a recording whose relays see ``x`` (V).
+
+    Of every kind (see :class:`History`; only ``kind`` when given): the first input reached
+    straight from the start, via one turning point on a 41-level grid of the recording's own
+    range, or via two on an 11-level grid; and the anhysteretic state.
+    """
+    rng = (model.u_min, model.u_max)
+    lo, hi = float(np.min(x)), float(np.max(x))
+    span = hi - lo
+    f0 = (float(x[0]) - lo) / span if span > 0 else 0.0
+
+    def v(f: float) -> str:
+        return f"{lo + f * span:.3g}"
+
+    after = f"after {v(0)}-{v(1)} V"
+    out: list[History] = []
+    if kind in (None, "anhysteretic"):
+        out.append(History("anhysteretic", rng, "anhysteretic", (), model.anhysteretic_state()))
+    fine = [float(a) for a in np.linspace(0.0, 1.0, 41)[1:-1]]
+    coarse = [float(c) for c in np.linspace(0.0, 1.0, 11)]
+    if kind in (None, "range"):
+        out.append(History(f"rose from {v(0)} V ({after})", rng))
+        out.append(History(f"fell from {v(1)} V ({after})", rng, "range", (1.0,)))
+        for a in fine:
+            if a > f0:
+                out.append(History(f"via {v(a)} V ({after})", rng, "range", (a,)))
+            elif a < f0:
+                out.append(History(f"via {v(a)} V ({after})", rng, "range", (1.0, a)))
+        for a in coarse:
+            for b in coarse:
+                if a > f0 > b:
+                    out.append(History(f"via {v(a)}, {v(b)} V ({after})", rng, "range", (a, b)))
+                elif a < f0 < b:
+                    out.append(
+                        History(f"via {v(a)}, {v(b)} V ({after})", rng, "range", (1.0, a, b))
+                    )
+    for sat, word, sign in (("negative", "rose", 1), ("positive", "fell", -1)):
+        if kind not in (None, sat):
+            continue
+        out.append(History(f"{word} from {sat} saturation", rng, sat))
+        for a in fine:
+            if sign * (a - f0) > 0:
+                out.append(History(f"from {sat} saturation via {v(a)} V", rng, sat, (a,)))
+        for a in coarse:
+            for b in coarse:
+                if sign * (a - f0) > 0 > sign * (b - f0):
+                    out.append(
+                        History(f"from {sat} saturation via {v(a)}, {v(b)} V", rng, sat, (a, b))
+                    )
+    return out
+
+
+def _initial_history(model: PreisachModel, u: Array, y: Array) -> History:
     """Choose an unknown initial state: a nuisance parameter, not a reason to discard data.
 
-    The candidates are the states that histories of up to three turns leave at the first
-    input ``u[0]``: from negative (positive) saturation straight to ``u[0]``; via one turning
-    point ``a`` on a 41-level grid; via two, ``a`` and ``b``, on an 11-level grid; and the
-    anhysteretic state.  The one whose simulation by the given model fits the recording best
-    (least squares over all its samples, which differ only until the input has wiped the
-    start out) is taken, and every sample is scored, so a ring after the first step counts
-    as evidence.
+    The candidates are the histories of :func:`state_options`.  The one whose simulation by
+    the given model fits the recording best (least squares over all its samples) is taken,
+    and every sample is scored, so a ring after the first step counts as evidence.  A history
+    from beyond the recording's own range (a saturation, the anhysteretic state) must fit
+    clearly better than every history within it - by more than the BIC charge of two
+    parameters, ``n ln(SSE_within / SSE_beyond) > 2 ln n`` - because it leaves the relays the
+    input never reaches in a different state: a free output offset per recording, which a
+    refit with an input lag or a feedback turns into per-recording offsets of its weights.
+    The choice among histories of the chosen kind is made again for every chain of effects
+    fitted during the diagnosis (:meth:`Context.choose_states`).
     """
     from .. import _core
 
-    table = model.table
-    lo, hi = model.u_min, model.u_max
-    u0 = float(np.clip(u[0], lo, hi))
-    neg, pos = model.negative_saturation(), model.positive_saturation()
-    paths: list[tuple[str, State, list[float]]] = [
-        ("anhysteretic", model.anhysteretic_state(), []),
-        ("rose from negative saturation", neg, [u0]),
-        ("fell from positive saturation", pos, [u0]),
-    ]
-    fine = np.linspace(lo, hi, 41)
-    coarse = np.linspace(lo, hi, 11)
-    for a in fine:
-        if a > u0:
-            paths.append((f"from negative saturation via {a:.3g} V", neg, [a, u0]))
-        elif a < u0:
-            paths.append((f"from positive saturation via {a:.3g} V", pos, [a, u0]))
-    for a in coarse:
-        for b in coarse:
-            if a > u0 > b:
-                paths.append((f"from negative saturation via {a:.3g}, {b:.3g} V", neg, [a, b, u0]))
-            elif a < u0 < b:
-                paths.append((f"from positive saturation via {a:.3g}, {b:.3g} V", pos, [a, b, u0]))
-    best: tuple[float, str, State] | None = None
-    for what, s0, path in paths:
-        st = _core.simulate(table, np.array(path), s0, "clamp")[1] if path else s0
-        sse = float(np.sum((y - _core.simulate(table, u, st, "clamp")[0]) ** 2))
-        if best is None or sse < best[0]:
-            best = (sse, what, st)
-    assert best is not None
-    return best[2], f"unknown: {best[1]}"
+    best: dict[bool, tuple[float, History]] = {}
+    for h in state_options(model, u):
+        sse = float(np.sum((y - _core.simulate(model.table, u, h.state(u), "clamp")[0]) ** 2))
+        within = h.kind in ("range", "anhysteretic")
+        if within not in best or sse < best[within][0]:
+            best[within] = (sse, h)
+    n = u.size
+    (s_in, h_in), (s_out, h_out) = best[True], best[False]
+    if s_out <= 0 or n * math.log(max(s_in, 1e-300) / s_out) > 2 * math.log(n):
+        return h_out
+    return h_in
 
 
 def prepare_recordings(
@@ -162,6 +240,7 @@ def prepare_recordings(
             else:
                 spec = "unknown"
         usable = np.ones(u.size, bool)
+        history: History | None = None
         if isinstance(spec, State):
             s0, start = spec, "given"
         elif spec == "negative_saturation":
@@ -171,7 +250,8 @@ def prepare_recordings(
         elif spec == "anhysteretic":
             s0, start = model.anhysteretic_state(), spec
         elif spec == "unknown":
-            s0, start = _initial_state(model, u, np.asarray(r.y, float))
+            history = _initial_history(model, u, np.asarray(r.y, float))
+            s0, start = history.state(u), f"unknown: {history.label}"
         elif spec == "burn_in":
             s0, start = model.anhysteretic_state(), spec
             usable[: _burn_in(u, tol)] = False
@@ -202,6 +282,7 @@ def prepare_recordings(
                 (blk % 2).astype(np.int64),
                 start,
                 ident,
+                history,
             )
         )
     return out

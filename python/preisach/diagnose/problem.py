@@ -101,7 +101,7 @@ class Problem:
                 if m.any():
                     P, ue, st = ctx.stage(i, fixed.base, self.ins)
                     self.ref_stage[i] = (P, st)
-                    self.R[i] = ctx.regressor(i, ue) if moved else ctx.regressor(i)
+                    self.R[i] = ctx.regressor(i, ue if moved else None, fixed.base)
             self.cacheable = not moved
             self.factor = ctx.normal_factor(self.R, train, drift, self.cacheable)
             if cand.side == "feedback":
@@ -161,7 +161,8 @@ class Problem:
                 fold[self.coarse[i]] = 0
             else:
                 fold = np.where(self.train[i], 0, -1).astype(np.int32)
-            gram, b, *_ = _core.normal_equations(ctx.levels, ue, target, r.state0, fold, 1, "clamp")
+            s0 = ctx.state(i, self.fixed.base, ue)
+            gram, b, *_ = _core.normal_equations(ctx.levels, ue, target, s0, fold, 1, "clamp")
             return gram[0], b[0], ue
 
         # the recordings are independent and the C++ loops release the GIL: one per core,
@@ -184,10 +185,11 @@ class Problem:
         theta = self.theta(x, coarse)
         if self.cand.side != "output" and self._last_u is not None:
             table = self.ctx.table(Base(theta))
-            recs, last = self.ctx.recs, self._last_u
+            ctx, last = self.ctx, self._last_u
 
             def sim(i: int) -> Array:
-                return cast(Array, _core.simulate(table, last[i], recs[i].state0, "clamp")[0])
+                s0 = ctx.state(i, self.fixed.base, last[i])
+                return cast(Array, _core.simulate(table, last[i], s0, "clamp")[0])
 
             Ps = dict(zip(last, _pool().map(sim, last)))
         else:

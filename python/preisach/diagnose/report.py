@@ -291,6 +291,35 @@ def where_of(recs: list[Rec], correction: list[Array], u_span: float) -> dict[st
     return where
 
 
+def _when(recs: list[Rec], res: list[Array]) -> dict[str, Any] | None:
+    """When a residual's power sits in a short stretch of one recording (None otherwise).
+
+    The recording holding most of the power; the stretch from its 10th to its 90th
+    percentile of cumulative power, reported when it is shorter than a fifth of the
+    recording; ``at_start`` when that stretch begins in the recording's first 5 %.
+    """
+    power = [float(np.sum(x * x)) for x in res]
+    if not power or max(power) <= 0:
+        return None
+    k = int(np.argmax(power))
+    r, x = recs[k], res[k]
+    cum = np.cumsum(x * x)
+    cum = cum / cum[-1]
+    i0 = int(np.searchsorted(cum, 0.1))
+    i1 = min(int(np.searchsorted(cum, 0.9)), r.n - 1)
+    t = r.t - r.t[0]
+    dur = float(t[-1]) if r.n > 1 else 0.0
+    if dur <= 0 or t[i1] - t[i0] > 0.2 * dur:
+        return None
+    return {
+        "recording": r.name,
+        "from": float(t[i0]),
+        "to": float(t[i1]),
+        "share_of_duration": float((t[i1] - t[i0]) / dur),
+        "at_start": bool(t[i0] <= 0.05 * dur),
+    }
+
+
 def unexplained_of(
     recs: list[Rec],
     residual: list[Array],
@@ -329,6 +358,13 @@ def unexplained_of(
             f"{100 * nr['power_share']:.0f} % of it within 50 ms after reversals "
             f"({100 * nr['time_share']:.0f} % of the time)"
         )
+    when = _when(recs, res)
+    if when is not None:
+        where["time_s"] = when
+        span = f"t = {when['from']:.3g}-{when['to']:.3g} s of {when['recording']!r}"
+        if when["at_start"]:
+            span += " (at its start: a start-up transient, e.g. a ring after the first step)"
+        words.append(f"80 % of its power within {span}")
     if follows:
         words.append(
             "follows "
