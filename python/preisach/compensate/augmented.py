@@ -64,7 +64,7 @@ def _inv_delay(blk: Any, y: Array, dt: float) -> Array:
     f = d - n
     m = y.size
     if f < 1e-12:
-        return np.r_[y[n:], np.full(min(n, m), y[-1])][:m]
+        return np.asarray(np.r_[y[n:], np.full(min(n, m), y[-1])][:m], dtype=float)
     out = np.empty(m)
     if f <= 0.5:  # x[j] = (y[j+n] - f x[j-1]) / (1 - f), x[-1] = y[0]
         prev = y[0]
@@ -94,7 +94,9 @@ def _limit_roots(c: Array, r_max: float) -> Array:
     return np.asarray(new * (c.sum() / new.sum()))
 
 
-def _inv_linear(blk: Any, y: Array, y0: float, dt: float, r_max: float, extra: dict) -> Array:
+def _inv_linear(
+    blk: Any, y: Array, y0: float, dt: float, r_max: float, extra: dict[str, Any]
+) -> Array:
     from scipy import signal
 
     b, a, mix = np.asarray(blk._b), np.asarray(blk._a), float(blk._mix)  # the block's design
@@ -134,7 +136,7 @@ def _inv_creep(blk: Any, y: Array, y0: float, dt: float) -> Array:
 
 
 def _invert_output_block(
-    blk: Any, y: Array, y0: float, dt: float, r_max: float, extra: dict
+    blk: Any, y: Array, y0: float, dt: float, r_max: float, extra: dict[str, Any]
 ) -> Array:
     kind = blk.kind
     p = blk.params
@@ -145,9 +147,10 @@ def _invert_output_block(
     if kind == "creep":
         return _inv_creep(blk, y, y0, dt)
     if kind == "gain_offset":
-        return (y - p["offset"]) / p["gain"]
+        return np.asarray((y - float(p["offset"])) / float(p["gain"]), dtype=float)
     if kind == "sensor_drift":
-        return y - p["offset"] - p["rate"] * (1 + np.arange(y.size)) * dt
+        drift = float(p["offset"]) + float(p["rate"]) * (1 + np.arange(y.size)) * dt
+        return np.asarray(y - drift, dtype=float)
     if kind == "sensor_nonlinearity":
         return np.asarray(blk.inverse(y))
     raise ValueError(
