@@ -21,7 +21,7 @@ import zipfile
 import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable, NamedTuple, Union
+from typing import TYPE_CHECKING, Any, Callable, NamedTuple, TypeVar, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -58,6 +58,120 @@ _FORMAT = "preisach-model"
 _FORMAT_VERSION = 2
 _POLICIES = ("clamp", "raise")
 _FIELDS = ("format", "version", "levels", "everett", "y_min", "info")
+_T = TypeVar("_T")
+
+
+# ---------------------------------------------------------------- shared by the model classes
+# (PreisachModel here, RateDependentPreisachModel in rate_model.py): policy, input and state
+# checks, and the versioned .npz archive's envelope.
+def _check_policy(default: str, out_of_range: str | None) -> str:
+    """Return the input policy of a call: ``out_of_range`` if given, else ``default``."""
+    pol = default if out_of_range is None else out_of_range
+    if pol not in _POLICIES:
+        raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {pol!r}")
+    return pol
+
+
+def _input_and_times(
+    u: ArrayLike, t: ArrayLike | None
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """Check a simulation's 1-D input ``u`` (V) and optional sample times ``t`` (s)."""
+    uu = _real_array("u", u)
+    if uu.ndim != 1:
+        raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
+    if t is None:
+        return uu, None
+    tt = _real_array("t", t)
+    if tt.shape != uu.shape:
+        raise ValueError(f"t: shape {tt.shape} does not match u {uu.shape}")
+    _check_times(tt)
+    return uu, tt
+
+
+def _batch_rows(uu: NDArray[np.float64], n_states: int, many: bool) -> NDArray[np.float64]:
+    """Return the (runs, n) input of a batch, one row broadcast to ``n_states`` starts.
+
+    ``many``: the states were given as a sequence (a 1-D ``uu`` is then one row).
+    """
+    if uu.ndim == 1 and many:
+        uu = uu[None, :]  # one input, many initial states
+    if uu.ndim != 2:
+        raise ValueError(
+            f"u: expected a 2-D array (runs, samples), or a 1-D input with a sequence of "
+            f"states, got shape {uu.shape}"
+        )
+    if uu.shape[0] == 1 and n_states > 1:
+        return np.ascontiguousarray(np.broadcast_to(uu, (n_states, uu.shape[1])))
+    if n_states not in (1, uu.shape[0]):
+        raise ValueError(
+            f"states: need one state or one per input row: got {n_states} states for "
+            f"{uu.shape[0]} rows"
+        )
+    return uu
+
+
+def _model_info(path: PathLike, name: str, metadata: dict[str, Any], out_of_range: str) -> str:
+    """Return the JSON ``info`` of a model archive (TypeError naming ``path`` if impossible)."""
+    try:
+        return json.dumps({"name": name, "metadata": metadata, "out_of_range": out_of_range})
+    except (TypeError, ValueError) as exc:
+        raise TypeError(
+            f"{os.fspath(path)}: cannot save the model: metadata is not JSON-serialisable ({exc})"
+        ) from exc
+
+
+def _read_archive(path: PathLike, read: Callable[[str, Any], _T]) -> _T:
+    """Open a model archive and return ``read(p, data)`` (ValueError naming the file if bad)."""
+    p = os.fspath(path)
+    try:
+        f = open(path, "rb")  # opened here: np.load leaks its handle on a bad zip file
+    except OSError as exc:
+        raise ValueError(f"{p}: not a readable model file ({exc})") from exc
+    with f:
+        try:
+            data = np.load(f, allow_pickle=False)
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"{p}: not a readable model file ({npz_load_error(exc)})") from exc
+        if not hasattr(data, "files"):  # a bare .npy array
+            raise ValueError(f"{p}: not a preisach model file (a single array, not an archive)")
+        with data:
+            return read(p, data)
+
+
+def _read_envelope(
+    p: str, data: Any, fmt: str, fields: Sequence[str], version_max: int, kind: str
+) -> tuple[int, dict[str, Any]]:
+    """Check an open archive's format, fields and version; return the version and ``info``.
+
+    Call inside :func:`_damaged`'s ``try`` (a KeyError or zip error is a damaged file).
+    """
+    if "format" not in data.files or str(data["format"]) != fmt:
+        raise ValueError(f"{p}: not a {kind} file")
+    missing = [k for k in fields if k not in data.files]
+    if missing:
+        raise ValueError(f"{p}: incomplete model file: missing {', '.join(map(repr, missing))}")
+    version = int(data["version"])
+    if version > version_max:
+        raise ValueError(
+            f"{p}: {kind} format version {version} is newer than this package supports "
+            f"({version_max}); upgrade preisach"
+        )
+    meta = json.loads(str(data["info"]))
+    if not isinstance(meta, dict):
+        raise ValueError(f"{p}: damaged model file: 'info' is not a JSON object")
+    return version, meta
+
+
+def _damaged(p: str, read: Callable[[], _T]) -> _T:
+    """Run ``read()``; errors not already naming the file become ``ValueError`` naming it."""
+    try:
+        return read()
+    except ValueError as exc:
+        if str(exc).startswith(p):
+            raise
+        raise ValueError(f"{p}: damaged model file ({exc})") from exc
+    except (KeyError, EOFError, zipfile.BadZipFile, zlib.error, OSError) as exc:
+        raise ValueError(f"{p}: damaged or truncated model file ({exc!r})") from exc
 
 
 def state_to_dict(state: State) -> dict[str, Any]:
@@ -579,10 +693,7 @@ class PreisachModel:
         return inverter(self, state, **kwargs)
 
     def _policy(self, out_of_range: str | None) -> str:
-        pol = self.out_of_range if out_of_range is None else out_of_range
-        if pol not in _POLICIES:
-            raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {pol!r}")
-        return pol
+        return _check_policy(self.out_of_range, out_of_range)
 
     def simulate(
         self,
@@ -618,21 +729,13 @@ class PreisachModel:
 
         """
         pol = self._policy(out_of_range)
-        uu = _real_array("u", u)
-        if uu.ndim != 1:
-            raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
+        uu, tt = _input_and_times(u, t)
         s0 = self.anhysteretic_state() if state is None else state
         if not isinstance(s0, State):
             raise TypeError(
                 f"state: expected a preisach.State (e.g. model.negative_saturation(), "
                 f"model.positive_saturation(), model.anhysteretic_state()), got {state!r}"
             )
-        tt = None
-        if t is not None:
-            tt = _real_array("t", t)
-            if tt.shape != uu.shape:
-                raise ValueError(f"t: shape {tt.shape} does not match u {uu.shape}")
-            _check_times(tt)
         if not sample_time > 0:
             raise ValueError(f"sample_time: must be positive, got {sample_time}")
         y, final = _core.simulate(self._table, uu, s0, pol)
@@ -690,20 +793,7 @@ class PreisachModel:
                 raise TypeError(
                     f"states[{bad[0]}]: expected a preisach State, got {type(st[bad[0]]).__name__}"
                 )
-        if uu.ndim == 1 and states is not None and not isinstance(states, State):
-            uu = uu[None, :]  # one input, many initial states
-        if uu.ndim != 2:
-            raise ValueError(
-                f"u: expected a 2-D array (runs, samples), or a 1-D input with a sequence of "
-                f"states, got shape {uu.shape}"
-            )
-        if uu.shape[0] == 1 and len(st) > 1:
-            uu = np.ascontiguousarray(np.broadcast_to(uu, (len(st), uu.shape[1])))
-        elif len(st) not in (1, uu.shape[0]):
-            raise ValueError(
-                f"states: need one state or one per input row: got {len(st)} states for "
-                f"{uu.shape[0]} rows"
-            )
+        uu = _batch_rows(uu, len(st), states is not None and not isinstance(states, State))
         if threads < 0:
             raise ValueError(f"threads: must be >= 0, got {threads}")
         y, finals = _core.simulate_batch(self._table, uu, st, self._policy(out_of_range), threads)
@@ -723,14 +813,7 @@ class PreisachModel:
             touched).
 
         """
-        meta = {"name": self.name, "metadata": self.metadata, "out_of_range": self.out_of_range}
-        try:
-            info = json.dumps(meta)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(
-                f"{os.fspath(path)}: cannot save the model: metadata is not JSON-serialisable "
-                f"({exc})"
-            ) from exc
+        info = _model_info(path, self.name, self.metadata, self.out_of_range)
         arrays: dict[str, Any] = {
             "format": np.array(_FORMAT),
             "version": np.array(_FORMAT_VERSION if self.identification else 1),
@@ -761,20 +844,9 @@ class PreisachModel:
 
         """
         p = os.fspath(path)
-        try:
-            f = open(path, "rb")  # opened here: np.load leaks its handle on a bad zip file
-        except OSError as exc:
-            raise ValueError(f"{p}: not a readable model file ({exc})") from exc
-        with f:
-            try:
-                data = np.load(f, allow_pickle=False)
-            except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-                raise ValueError(f"{p}: not a readable model file ({npz_load_error(exc)})") from exc
-            if not hasattr(data, "files"):  # a bare .npy array
-                raise ValueError(f"{p}: not a preisach model file (a single array, not an archive)")
-            with data:
-                levels, everett, y_min, meta = cls._read_fields(p, data)
-                ident = cls._read_identification(p, data)
+        levels, everett, y_min, meta, ident = _read_archive(
+            path, lambda p, data: (*cls._read_fields(p, data), cls._read_identification(p, data))
+        )
         try:
             table = _core.EverettTable(levels, everett, y_min)
             model = cls(
@@ -809,32 +881,12 @@ class PreisachModel:
         p: str, data: Any
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, dict[str, Any]]:
         """Levels, Everett values, y_min and info of an open model archive ``data`` (file p)."""
-        try:
-            if "format" not in data.files or str(data["format"]) != _FORMAT:
-                raise ValueError(f"{p}: not a preisach model file")
-            missing = [k for k in _FIELDS if k not in data.files]
-            if missing:
-                raise ValueError(
-                    f"{p}: incomplete model file: missing {', '.join(map(repr, missing))}"
-                )
-            version = int(data["version"])
-            if version > _FORMAT_VERSION:
-                raise ValueError(
-                    f"{p}: model format version {version} is newer than this "
-                    f"package supports ({_FORMAT_VERSION}); upgrade preisach"
-                )
-            levels, everett = data["levels"], data["everett"]
-            y_min = float(data["y_min"])
-            meta = json.loads(str(data["info"]))
-            if not isinstance(meta, dict):
-                raise ValueError(f"{p}: damaged model file: 'info' is not a JSON object")
-        except ValueError as exc:
-            if str(exc).startswith(p):
-                raise
-            raise ValueError(f"{p}: damaged model file ({exc})") from exc
-        except (KeyError, EOFError, zipfile.BadZipFile, zlib.error, OSError) as exc:
-            raise ValueError(f"{p}: damaged or truncated model file ({exc!r})") from exc
-        return levels, everett, y_min, meta
+
+        def read() -> tuple[NDArray[np.float64], NDArray[np.float64], float, dict[str, Any]]:
+            _, meta = _read_envelope(p, data, _FORMAT, _FIELDS, _FORMAT_VERSION, "preisach model")
+            return data["levels"], data["everett"], float(data["y_min"]), meta
+
+        return _damaged(p, read)
 
     def __getstate__(self) -> dict[str, Any]:
         return {

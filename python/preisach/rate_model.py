@@ -39,11 +39,8 @@ knots of the built-in ``"ss15-rate"``, whose tables are the three Table 3.1 surf
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import zipfile
-import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Union
@@ -59,7 +56,13 @@ from .model import (
     SimulationResult,
     Slopes,
     State,
-    _check_times,
+    _batch_rows,
+    _check_policy,
+    _damaged,
+    _input_and_times,
+    _model_info,
+    _read_archive,
+    _read_envelope,
     _real_array,
     state_from_dict,
     state_to_dict,
@@ -450,10 +453,7 @@ class RateDependentPreisachModel:
         return _core.RateSimulator(self._core, st.boundary, st.rate, float(sample_time))
 
     def _policy(self, out_of_range: str | None) -> str:
-        pol = self.out_of_range if out_of_range is None else out_of_range
-        if pol not in _POLICIES:
-            raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {pol!r}")
-        return pol
+        return _check_policy(self.out_of_range, out_of_range)
 
     def simulate(
         self,
@@ -487,17 +487,10 @@ class RateDependentPreisachModel:
 
         """
         pol = self._policy(out_of_range)
-        uu = _real_array("u", u)
-        if uu.ndim != 1:
-            raise ValueError(f"u: expected a 1-D array of input samples, got shape {uu.shape}")
+        uu, tt = _input_and_times(u, t)
         st = _as_rate_state(state, self.anhysteretic_state())
-        tt = None
         ts = float(sample_time)
-        if t is not None:
-            tt = _real_array("t", t)
-            if tt.shape != uu.shape:
-                raise ValueError(f"t: shape {tt.shape} does not match u {uu.shape}")
-            _check_times(tt)
+        if tt is not None:
             if tt.size >= 2:
                 d = np.diff(tt)
                 ts = float(np.mean(d))
@@ -562,20 +555,7 @@ class RateDependentPreisachModel:
             st = [_as_rate_state(s, self.anhysteretic_state()) for s in states]  # type: ignore[union-attr]
             if not st:
                 raise ValueError("states: need at least one initial state")
-        if uu.ndim == 1 and not single:
-            uu = uu[None, :]
-        if uu.ndim != 2:
-            raise ValueError(
-                f"u: expected a 2-D array (runs, samples), or a 1-D input with a sequence of "
-                f"states, got shape {uu.shape}"
-            )
-        if uu.shape[0] == 1 and len(st) > 1:
-            uu = np.ascontiguousarray(np.broadcast_to(uu, (len(st), uu.shape[1])))
-        elif len(st) not in (1, uu.shape[0]):
-            raise ValueError(
-                f"states: need one state or one per input row: got {len(st)} states for "
-                f"{uu.shape[0]} rows"
-            )
+        uu = _batch_rows(uu, len(st), not single)
         if threads < 0:
             raise ValueError(f"threads: must be >= 0, got {threads}")
         y, finals, rates = _core.simulate_rate_batch(
@@ -599,14 +579,7 @@ class RateDependentPreisachModel:
             If :attr:`metadata` is not JSON-serialisable (``path`` is not touched).
 
         """
-        meta = {"name": self.name, "metadata": self.metadata, "out_of_range": self.out_of_range}
-        try:
-            info = json.dumps(meta)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(
-                f"{os.fspath(path)}: cannot save the model: metadata is not JSON-serialisable "
-                f"({exc})"
-            ) from exc
+        info = _model_info(path, self.name, self.metadata, self.out_of_range)
         tables = self._core.tables
         arrays: dict[str, Any] = {
             "format": np.array(_FORMAT),
@@ -634,48 +607,25 @@ class RateDependentPreisachModel:
 
         """
         p = os.fspath(path)
-        try:
-            f = open(path, "rb")
-        except OSError as exc:
-            raise ValueError(f"{p}: not a readable model file ({exc})") from exc
-        with f:
-            try:
-                data = np.load(f, allow_pickle=False)
-            except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-                what = "the file is empty" if isinstance(exc, EOFError) else str(exc)
-                raise ValueError(f"{p}: not a readable model file ({what})") from exc
-            if not hasattr(data, "files"):
-                raise ValueError(f"{p}: not a preisach model file (a single array, not an archive)")
-            with data:
-                try:
-                    if "format" not in data.files or str(data["format"]) != _FORMAT:
-                        raise ValueError(f"{p}: not a rate-dependent preisach model file")
-                    missing = [k for k in _FIELDS if k not in data.files]
-                    if missing:
-                        raise ValueError(
-                            f"{p}: incomplete model file: missing {', '.join(map(repr, missing))}"
-                        )
-                    version = int(data["version"])
-                    if version > _FORMAT_VERSION:
-                        raise ValueError(
-                            f"{p}: rate model format version {version} is newer than this "
-                            f"package supports ({_FORMAT_VERSION}); upgrade preisach"
-                        )
-                    levels = np.asarray(data["levels"], dtype=float)
-                    everett = np.asarray(data["everett"], dtype=float)
-                    y_min = np.asarray(data["y_min"], dtype=float)
-                    knots = np.asarray(data["knots"], dtype=float)
-                    tau = float(data["tau"])
-                    scale = str(data["scale"]) if "scale" in data.files else "log"
-                    meta = json.loads(str(data["info"]))
-                    if not isinstance(meta, dict):
-                        raise ValueError(f"{p}: damaged model file: 'info' is not a JSON object")
-                except ValueError as exc:
-                    if str(exc).startswith(p):
-                        raise
-                    raise ValueError(f"{p}: damaged model file ({exc})") from exc
-                except (KeyError, EOFError, zipfile.BadZipFile, zlib.error, OSError) as exc:
-                    raise ValueError(f"{p}: damaged or truncated model file ({exc!r})") from exc
+
+        def read(p: str, data: Any) -> tuple[Any, ...]:
+            def fields() -> tuple[Any, ...]:
+                _, meta = _read_envelope(
+                    p, data, _FORMAT, _FIELDS, _FORMAT_VERSION, "rate-dependent preisach model"
+                )
+                return (
+                    np.asarray(data["levels"], dtype=float),
+                    np.asarray(data["everett"], dtype=float),
+                    np.asarray(data["y_min"], dtype=float),
+                    np.asarray(data["knots"], dtype=float),
+                    float(data["tau"]),
+                    str(data["scale"]) if "scale" in data.files else "log",
+                    meta,
+                )
+
+            return _damaged(p, fields)
+
+        levels, everett, y_min, knots, tau, scale, meta = _read_archive(path, read)
         try:
             if everett.ndim != 3 or y_min.shape != (everett.shape[0],):
                 raise ValueError("everett must be (K, n, n) with one y_min per table")
