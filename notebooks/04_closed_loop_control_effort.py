@@ -151,11 +151,13 @@ print(f"{len(rig_plant.results)} trials recorded in {rig_plant.record_dir}")
 #   sampling, a coarse quantised table, the noise's units, the rate-dependent model
 #   `ss15-rate`): none reproduces Fig 5.7.
 # * The thesis's experiments found the ordering with a much smaller margin (Table 5.1,
-#   mostly 1–3 %, against 10–40 % here). Of the left-out physics the study tries (rate
+#   mostly 1–3 %, against 10–43 % here). Of the left-out physics the study tries (rate
 #   dependence, sensor noise with the 25 ms error averaging, creep, amplifier lag) only the
 #   rate-dependent model moves the table toward the rig — its margins no longer grow with the
-#   initialisation frequency — and none closes the ~10 × gap at 1 Hz. Notebook 05 shows how
-#   to look for such physics in recordings.
+#   initialisation frequency — and none closes the ~10 × gap at 1 Hz, not even rate
+#   dependence with creep and the amplifier lag in one plant (`RatePlant` with
+#   `input_blocks`/`output_blocks`: ψa 13 % median at every frequency). Notebook 05 shows how to
+#   look for such physics in recordings.
 #
 # **Full study.** `python scripts/regulation_study.py --seeds 20` (3 frequencies × 3 states ×
 # 7 gains × 20 seeds, Table 5.1 and the sensitivity of the verdicts), or
