@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import preisach
 import pytest
-from _trial_files import ANY_MISSED, SIM_HEAD
+from _trial_files import ANY_MISSED, SIM_HEAD, start_realtime_run, wait_for_rows
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from preisach import PreisachModel, Recording
@@ -217,35 +217,8 @@ def test_trial_check_rejects_what_run_rejects(tmp_path):
 def _start_trial(tmp_path: Path, *, fsize: int | None = None, value: float = 20.0):
     p = _trial(tmp_path, f'[[steps]]\nkind = "hold"\nduration = 60.0\nvalue = {value}\n')
     out = tmp_path / "o"
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "preisach.trials",
-            "run",
-            str(p),
-            "-o",
-            str(out),
-            "--realtime",
-            "-q",
-        ],
-        env=_env(),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=None if fsize is None else _limit_file_size(fsize),
-    )
-    return proc, out
-
-
-def _wait_rows(proc, csv: Path, rows: int) -> None:
-    deadline = time.monotonic() + 60
-    seen = 0
-    while seen < rows and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.05)
-        if csv.exists():
-            seen = sum(1 for line in csv.read_text().splitlines() if line[:1].isdigit())
-    assert seen >= rows, "the trial did not start writing"
+    limit = None if fsize is None else _limit_file_size(fsize)
+    return start_realtime_run(p, out, env=_env(), preexec_fn=limit), out
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP], ids=lambda s: s.name)
@@ -253,7 +226,7 @@ def test_sigterm_and_sighup_stop_a_trial_like_ctrl_c(tmp_path, sig):
     proc, out = _start_trial(tmp_path)
     csv = out / "01_hold.csv"
     try:
-        _wait_rows(proc, csv, 200)
+        wait_for_rows(proc, csv, 200)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=30)
     finally:

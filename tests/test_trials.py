@@ -4,14 +4,11 @@ import argparse
 import io
 import json
 import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from _trial_files import SIM_HEAD
+from _trial_files import ANY_MISSED, SIM_HEAD, start_realtime_run, wait_for_rows
 from preisach import Recording, trials
 from preisach.errors import TrialFileError
 from preisach.identify import find_fod_curves
@@ -376,9 +373,8 @@ def test_sigint_leaves_a_complete_contiguous_recording(tmp_path):
     p = write(
         tmp_path,
         HEAD
+        + ANY_MISSED
         + """
-[safety]
-max_consecutive_missed = -1
 [[steps]]
 kind = "hold"
 duration = 60.0
@@ -387,30 +383,9 @@ value = 20.0
     )
     out = tmp_path / "o"
     csv = out / "01_hold.csv"
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "preisach.trials",
-            "run",
-            str(p),
-            "-o",
-            str(out),
-            "--realtime",
-            "-q",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = start_realtime_run(p, out)
     try:
-        seen = 0
-        deadline = time.monotonic() + 60
-        while seen < 500 and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.05)
-            if csv.exists():
-                seen = sum(1 for line in csv.read_text().splitlines() if line and line[0].isdigit())
-        assert seen >= 500, "the trial did not start writing"
+        seen = wait_for_rows(proc, csv, 500)
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=30)
     finally:
