@@ -306,7 +306,7 @@ class SimulationResult:
 
 def _as_levels(levels: ArrayLike | int, u_min: float, u_max: float) -> NDArray[np.float64]:
     if np.ndim(levels) == 0:
-        n = int(levels)  # type: ignore[arg-type]
+        n = int(np.asarray(levels))
         if n < 2:
             raise ValueError(f"levels: need at least 2 grid levels, got {n}")
         return np.linspace(u_min, u_max, n)

@@ -268,7 +268,7 @@ def fod_sweep(
 
     """
     if np.ndim(levels) == 0:
-        k = int(levels)  # type: ignore[arg-type]
+        k = int(np.asarray(levels))
         if k < 2:
             raise ValueError(f"levels: need at least 2 levels, got {k}")
         lo, hi = _finite("u_min", u_min), _finite("u_max", u_max)

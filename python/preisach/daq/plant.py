@@ -85,10 +85,12 @@ class DevicePlant:
             self.model = model
         self.realtime = bool(realtime)
         self.safety = safety
-        self._tmp = (
-            tempfile.TemporaryDirectory(prefix="preisach-plant-") if record_dir is None else None
-        )
-        self.record_dir = os.fspath(record_dir) if record_dir is not None else self._tmp.name  # type: ignore[union-attr]
+        self._tmp: tempfile.TemporaryDirectory[str] | None = None
+        if record_dir is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="preisach-plant-")
+            self.record_dir = self._tmp.name
+        else:
+            self.record_dir = os.fspath(record_dir)
         os.makedirs(self.record_dir, exist_ok=True)
         self._count = itertools.count(1)
         #: Results of the runs so far, in order.

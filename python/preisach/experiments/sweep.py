@@ -390,15 +390,15 @@ def _sweep_task(
             exact = model.slopes(model.neutral_state(init.l_inverse))
             info["exact_dy_du_rising"] = float(exact.rising)
             info["exact_dy_du_falling"] = float(exact.falling)
-    runner = drift_trials if experiment == "drift" else closed_loop_trials
-    results = runner(
-        plant,
-        init,
-        [task.gain] * len(seeds),
-        seeds,
-        protocol,  # type: ignore[arg-type]
-        keep_traces=task.keep_traces,
-    )
+    gains = [task.gain] * len(seeds)
+    keep = task.keep_traces
+    results: list[DriftResult] | list[ClosedLoopResult]
+    if experiment == "drift":
+        assert isinstance(protocol, DriftProtocol)
+        results = drift_trials(plant, init, gains, seeds, protocol, keep_traces=keep)
+    else:
+        assert isinstance(protocol, ClosedLoopProtocol)
+        results = closed_loop_trials(plant, init, gains, seeds, protocol, keep_traces=keep)
     rows: list[dict[str, Any]] = []
     kept: list[DriftResult | ClosedLoopResult] = []
     for res in results:
