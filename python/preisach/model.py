@@ -64,6 +64,38 @@ _T = TypeVar("_T")
 # ---------------------------------------------------------------- shared by the model classes
 # (PreisachModel here, RateDependentPreisachModel in rate_model.py): policy, input and state
 # checks, and the versioned .npz archive's envelope.
+class _ModelBase:
+    """Name, metadata and input policy: what both model classes keep besides their tables.
+
+    (:class:`PreisachModel` and :class:`~preisach.rate_model.RateDependentPreisachModel`.)
+    """
+
+    name: str
+    metadata: dict[str, Any]
+    out_of_range: str
+
+    def _set_info(self, name: str, metadata: dict[str, Any] | None, out_of_range: str) -> None:
+        if out_of_range not in _POLICIES:
+            raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {out_of_range!r}")
+        self.name = name
+        self.metadata = dict(metadata or {})
+        self.out_of_range = out_of_range
+
+    def _info_state(self) -> dict[str, Any]:
+        """Return the name, metadata and policy for ``__getstate__``."""
+        return {"name": self.name, "metadata": self.metadata, "out_of_range": self.out_of_range}
+
+    def _set_info_state(self, state: dict[str, Any]) -> None:
+        self.name = state["name"]
+        self.metadata = state["metadata"]
+        self.out_of_range = state["out_of_range"]
+
+    def _policy(self, out_of_range: str | None) -> str:
+        return _check_policy(self.out_of_range, out_of_range)
+
+    __hash__ = None  # type: ignore[assignment]
+
+
 def _check_policy(default: str, out_of_range: str | None) -> str:
     """Return the input policy of a call: ``out_of_range`` if given, else ``default``."""
     pol = default if out_of_range is None else out_of_range
@@ -348,7 +380,7 @@ def _lower_grid(levels: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArr
     return a, np.minimum(b, a)
 
 
-class PreisachModel:
+class PreisachModel(_ModelBase):
     """Classical Preisach model held as an Everett table; simulation runs in C++.
 
     Build one with :meth:`from_fod_grid`, :meth:`from_everett`, :meth:`from_weights`,
@@ -387,12 +419,8 @@ class PreisachModel:
             raise TypeError(
                 f"table: expected preisach._core.EverettTable, got {type(table).__name__}"
             )
-        if out_of_range not in _POLICIES:
-            raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {out_of_range!r}")
+        self._set_info(name, metadata, out_of_range)
         self._table = table
-        self.name = name
-        self.metadata: dict[str, Any] = dict(metadata or {})
-        self.out_of_range = out_of_range
         self.identification: list[Any] = []
 
     # ------------------------------------------------------------------ construction
@@ -692,9 +720,6 @@ class PreisachModel:
 
         return inverter(self, state, **kwargs)
 
-    def _policy(self, out_of_range: str | None) -> str:
-        return _check_policy(self.out_of_range, out_of_range)
-
     def simulate(
         self,
         u: ArrayLike,
@@ -891,17 +916,13 @@ class PreisachModel:
     def __getstate__(self) -> dict[str, Any]:
         return {
             "table": self._table,
-            "name": self.name,
-            "metadata": self.metadata,
-            "out_of_range": self.out_of_range,
+            **self._info_state(),
             "identification": self.identification,
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self._table = state["table"]
-        self.name = state["name"]
-        self.metadata = state["metadata"]
-        self.out_of_range = state["out_of_range"]
+        self._set_info_state(state)
         self.identification = list(state.get("identification", []))
 
     def __eq__(self, other: object) -> bool:
@@ -912,8 +933,6 @@ class PreisachModel:
             and np.array_equal(self.everett_values, other.everett_values)
             and self.y_min == other.y_min
         )
-
-    __hash__ = None  # type: ignore[assignment]
 
     def _repr_html_(self) -> str:
         """HTML for Jupyter: levels, input and output range, a major-loop thumbnail."""

@@ -57,10 +57,10 @@ from .model import (
     Slopes,
     State,
     _batch_rows,
-    _check_policy,
     _damaged,
     _input_and_times,
     _model_info,
+    _ModelBase,
     _read_archive,
     _read_envelope,
     _real_array,
@@ -85,7 +85,6 @@ _FORMAT = "preisach-rate-model"
 #: version 1 (readable by older packages), version-1 files load with ``"log"``.
 _FORMAT_VERSION = 2
 _FIELDS = ("format", "version", "levels", "everett", "y_min", "knots", "tau", "info")
-_POLICIES = ("clamp", "raise")
 #: Coordinates the basis can interpolate in between knots (module docstring).
 RATE_SCALES: tuple[str, ...] = ("log", "linear")
 
@@ -209,7 +208,7 @@ class RateSimulationResult(SimulationResult):
         return RateState(self.initial_state, self.initial_rate)
 
 
-class RateDependentPreisachModel:
+class RateDependentPreisachModel(_ModelBase):
     """Preisach model whose Everett function depends on the filtered input rate.
 
     ``E(alpha, beta; v) = sum_k b_k(v) E_k(alpha, beta)`` (see the module docstring for the
@@ -241,12 +240,8 @@ class RateDependentPreisachModel:
             raise TypeError(
                 f"core: expected preisach._core.RateDependentModel, got {type(core).__name__}"
             )
-        if out_of_range not in _POLICIES:
-            raise ValueError(f"out_of_range: expected 'clamp' or 'raise', got {out_of_range!r}")
+        self._set_info(name, metadata, out_of_range)
         self._core = core
-        self.name = name
-        self.metadata: dict[str, Any] = dict(metadata or {})
-        self.out_of_range = out_of_range
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -452,9 +447,6 @@ class RateDependentPreisachModel:
         st = _as_rate_state(state, self.anhysteretic_state())
         return _core.RateSimulator(self._core, st.boundary, st.rate, float(sample_time))
 
-    def _policy(self, out_of_range: str | None) -> str:
-        return _check_policy(self.out_of_range, out_of_range)
-
     def simulate(
         self,
         u: ArrayLike,
@@ -646,18 +638,14 @@ class RateDependentPreisachModel:
             "knots": [float(x) for x in self.knots],
             "tau": self.tau,
             "scale": self.scale,
-            "name": self.name,
-            "metadata": self.metadata,
-            "out_of_range": self.out_of_range,
+            **self._info_state(),
         }
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self._core = _core.RateDependentModel(
             state["tables"], state["knots"], state["tau"], state.get("scale", "log")
         )
-        self.name = state["name"]
-        self.metadata = state["metadata"]
-        self.out_of_range = state["out_of_range"]
+        self._set_info_state(state)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, RateDependentPreisachModel):
@@ -675,8 +663,6 @@ class RateDependentPreisachModel:
                 for x, z in zip(a, b)
             )
         )
-
-    __hash__ = None  # type: ignore[assignment]
 
     def _repr_html_(self) -> str:
         """HTML for Jupyter: rates, filter, grid and the major loop at each rate."""
