@@ -263,6 +263,14 @@ def test_plant_with_physics_blocks_is_the_chain(ss15_rate) -> None:
         RatePlant(ss15_rate, dt, output_blocks=[creep], out_of_range="raise")
     with pytest.raises(ValueError, match="physics blocks"):
         plant.slopes()
+    # plants pickle (studies ship them to worker processes)
+    bare = RatePlant(ss15_rate, dt)
+    bare.run_open_loop(u[:500])
+    back = pickle.loads(pickle.dumps(bare))
+    assert back.snapshot() == bare.snapshot()
+    assert np.allclose(back.run_open_loop(u[500:900]), bare.run_open_loop(u[500:900]), atol=1e-12)
+    back = pickle.loads(pickle.dumps(plant))
+    assert back.has_blocks and back.snapshot().chain.kinds == plant.snapshot().chain.kinds
     # the experiments run on it
     init = drive_to_state(plant, "n", 1.0, 1.0)
     assert abs(init.y_end - 1.0) <= 0.03

@@ -88,6 +88,28 @@ class RatePlant(SimulatedPlant):
                 f"{self.out_of_range!r}"
             )
 
+    def __getstate__(self) -> dict[str, Any]:
+        # The C++ simulator or chain does not pickle (studies ship plants to worker
+        # processes): without blocks the exact boundary and rate go instead; with blocks (given
+        # as mappings) the model's boundary and rate, and the blocks restart in the steady
+        # state of its input (every experiment starts with a saturating waveform anyway).
+        specs = (*self._specs[0], *self._specs[1])
+        if not all(isinstance(b, Mapping) for b in specs):
+            raise TypeError("RatePlant: pickling needs the blocks as {'kind': ...} mappings")
+        d = self.__dict__.copy()
+        d["_sim"] = (
+            RateState(self._sim[len(self._specs[0])].state, self.rate)
+            if self.has_blocks
+            else self.snapshot()
+        )
+        return d
+
+    def __setstate__(self, d: dict[str, Any]) -> None:
+        state = d.pop("_sim")
+        self.__dict__.update(d)
+        self._sim = self._new_simulator()
+        self.reset(state)
+
     @property
     def has_blocks(self) -> bool:
         """Whether physics blocks surround the model (runs go through a block chain)."""
