@@ -172,6 +172,9 @@ class AugmentedModel:
         y0 = self.base.readout(s0)
         for b in self.output_blocks:
             blk = b.with_dt(dt)
+            if hasattr(blk, "apply_chain"):  # needs the Preisach input and initial state
+                y = blk.apply_chain(y, x, s0)
+                continue
             if isinstance(blk, RateDependentWidth):
                 grid = np.linspace(self.base.u_min, self.base.u_max, 401)
                 anh = np.interp(x, grid, np.asarray(_core.neutral_locus(self.base.table, grid)))

@@ -414,6 +414,11 @@ class CreepCandidate(Candidate):
     def params(self, x: Array) -> dict[str, Any]:
         return {"taus": list(self.taus), "weights": [float(c) for c in x[1:]], "gain": float(x[0])}
 
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        from .rate_family import creep_implausible  # creep must go on during the holds
+
+        return creep_implausible(ctx)
+
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         c = x[1:]
         parts = ", ".join(
@@ -594,6 +599,8 @@ class DriftCandidate(Candidate):
         )
 
 
+from .rate_family import RateFamilyCandidate  # noqa: E402 (subclasses Candidate)
+
 #: The candidate classes by effect name.
 CANDIDATES: dict[str, type[Candidate]] = {
     c().key: c
@@ -601,6 +608,7 @@ CANDIDATES: dict[str, type[Candidate]] = {
         RateLagCandidate,
         RateCandidate,
         RateWidthCandidate,
+        RateFamilyCandidate,
         ModeCandidate,
         CreepCandidate,
         DelayCandidate,

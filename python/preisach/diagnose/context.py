@@ -732,6 +732,8 @@ class Context:
         every evaluation re-solves them by least squares for the candidate's parameters, with
         the blocks linearised about a reference base that is updated ``alternations`` times.
         """
+        if hasattr(cand, "fit_chain"):  # a family solved by its own least squares
+            return cast(Chain, cand.fit_chain(self, fixed, train, drift))
         if not self.refits(fixed):
             chain = fixed.plus(self._fit_params(cand, fixed, train, drift, None, profile=False))
             chosen = self.choose_states(chain, drift)
