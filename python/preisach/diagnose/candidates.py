@@ -2,8 +2,9 @@
 
 An effect may be tested in several forms (``variant``): ``rate_dependence`` as a first-order
 lag on the input, as threshold dilation growing with a power of the rate (sublinear widening
-included), and as a rate-scaled loop width; the best form is kept and reported under the
-effect's name.
+included), as a rate-scaled loop width, and as an Everett function that changes with the
+filtered input rate (:mod:`preisach.diagnose.rate_family`); the best form is kept and reported
+under the effect's name.
 
 A candidate knows its block (``preisach.diagnose.effects``), where it sits in the chain
 (input side, or its place among the output blocks), its fitted parameters with bounds and a
@@ -415,9 +416,9 @@ class CreepCandidate(Candidate):
         return {"taus": list(self.taus), "weights": [float(c) for c in x[1:]], "gain": float(x[0])}
 
     def implausible(self, x: Array, ctx: Context) -> str | None:
-        from .rate_family import creep_implausible  # creep must go on during the holds
+        from .rate_family import creep_implausible  # creep must go on for seconds
 
-        return creep_implausible(ctx)
+        return creep_implausible(ctx, self.taus, x[1:])
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         c = x[1:]

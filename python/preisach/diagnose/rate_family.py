@@ -42,6 +42,7 @@ from __future__ import annotations
 import copy
 import math
 import weakref
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -59,6 +60,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .context import Chain, Context, Stage
 
 __all__ = [
+    "CREEP_MIN_LATE_SHARE",
     "CREEP_MIN_T",
     "HoldMotion",
     "creep_implausible",
@@ -275,13 +277,34 @@ _HOLDS: weakref.WeakKeyDictionary[Any, HoldMotion] = weakref.WeakKeyDictionary()
 CREEP_MIN_T: float = 2.0
 
 
-def creep_implausible(ctx: Context) -> str | None:
-    """Why creep does not fit the recordings' holds (None when it does or they cannot tell).
+#: Smallest share of a fitted creep that may still be to come 1 s after a move (a log creep
+#: from 20 ms to 20 s leaves about 40 %).
+CREEP_MIN_LATE_SHARE: float = 0.1
+
+
+def creep_implausible(ctx: Context, taus: Sequence[float], weights: ArrayLike) -> str | None:
+    """Why a fitted creep is not creep (None when it is, or the data cannot tell).
 
     Creep keeps the output moving in the direction of the last move while the input is held,
-    for seconds; an after-effect that has ended ``settle`` (0.5 s) into every hold is not creep
-    (a rate effect or a lag).  Needs at least three holds of 1.25 s or more.
+    for seconds.  An after-effect that is not creep:
+
+    * the fit itself is over within a second: less than :data:`CREEP_MIN_LATE_SHARE` of its
+      movement (lags of time constants ``taus`` with ``weights``) comes later than 1 s after a
+      move - a lag, or rate dependence settling with its rate filter;
+    * the holds of the recordings (at least three of 1.25 s or more) show no late motion: from
+      0.5 s into a hold the output no longer follows the move before it (t below
+      :data:`CREEP_MIN_T`, :func:`hold_motion`).
     """
+    c = np.clip(np.asarray(weights, dtype=float), 0.0, None)
+    t = np.asarray(taus, dtype=float)
+    if c.sum() > 0:
+        share = float(np.sum(c * np.exp(-1.0 / t)) / c.sum())
+        if share < CREEP_MIN_LATE_SHARE:
+            return (
+                f"the fitted after-effect is over within a second ({100 * share:.2g} % of it "
+                "comes later than 1 s after a move): creep goes on for seconds, so this is "
+                "a lag or rate dependence"
+            )
     hm = _HOLDS.get(ctx)
     if hm is None:
         hm = _HOLDS[ctx] = hold_motion(ctx)
