@@ -35,7 +35,7 @@ def _inputs(hold: float) -> tuple[np.ndarray, list[tuple[str, np.ndarray]]]:
     ident = np.concatenate(
         [np.linspace(0, -100, 200), env * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t))]
     )
-    exps = [(f"triangle {f:g} Hz", _triangle(f, T)) for f, T in ((0.5, 4), (2, 3), (4, 2))]
+    exps = [(f"triangle {f:g} Hz", _triangle(f, T)) for f, T in ((0.5, 4), (2, 4), (3, 3), (4, 4))]
     n = int(hold / DT)
     exps.append(("steps", np.concatenate([np.full(n, v) for v in (0, 50, -30, 80, -80, 20)])))
     return ident, exps
@@ -72,7 +72,7 @@ def _mean_width(model: PreisachModel) -> float:
 @pytest.fixture(scope="module")
 def rate_report():
     truth = RateDependentPreisachModel.builtin("ss15-rate", levels=41)
-    ident, exps = _recordings(lambda u: truth.simulate(u, sample_time=DT).output, 1.5, 1)
+    ident, exps = _recordings(lambda u: truth.simulate(u, sample_time=DT).output, 1.3, 1)
     model = PreisachModel.builtin("ss15-1hz", 41)
     rep = diagnose(model, exps, identification=[ident], candidates=CANDIDATES, progress=False)
     return truth, rep, exps

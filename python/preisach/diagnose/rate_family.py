@@ -44,7 +44,7 @@ import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,7 +57,7 @@ from .candidates import Candidate, ParamSpec, _pm, _sd
 from .effects import EFFECT_TYPES, EffectBlock, _finite, _positive
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .context import Chain, Context, Stage
+    from .context import Base, Chain, Context, Stage
 
 __all__ = [
     "CREEP_MIN_LATE_SHARE",
@@ -424,16 +424,24 @@ class RateFamilyCandidate(Candidate):
         """Fit the family on the ``train`` samples after ``fixed`` (see the module docstring).
 
         Returns ``fixed`` plus a fitted copy of this candidate (holding its tables), with the
-        base weights refitted together with the increments when ``ctx.refits(fixed)``.
+        base weights refitted together with the increments when ``ctx.refits(fixed)``.  As
+        for every fitted chain, the unknown initial states are then re-chosen
+        (:meth:`Context.choose_states`) and, when one changed, the tables solved again (up to
+        ``ctx.alternations`` times; ``tau`` and the ridge are chosen in the first pass).  The
+        increments start from each recording's initial state chosen with the given model:
+        the histories differ only in relays the recording's input never reaches.
         """
-        from .context import Base, FittedEffect
+        from .context import Base, Chain, FittedEffect
 
         refit = ctx.refits(fixed)
         outs = [e for e in fixed.effects if e.cand.side == "output"]
-        ref = fixed.base
+        moved = any(e.cand.side != "output" for e in fixed.effects)
         todo = [i for i, m in enumerate(train) if m.any()]
-        best: tuple[float, float, Array, Array, Array | None] | None = None
-        for _ in range(max(1, ctx.alternations if (refit and outs) else 1)):
+        m = self.levels.size * (self.levels.size - 1) // 2 + 1
+        ref = fixed.base
+        choice: tuple[float, float, Array] | None = None
+        chain = fixed
+        for _ in range(max(1, ctx.alternations)):
             ins: dict[int, Array] = {}
             targets: dict[int, Array] = {}
             R0: dict[int, sp.csr_matrix] = {}
@@ -443,66 +451,76 @@ class RateFamilyCandidate(Candidate):
                 ins[i] = np.ascontiguousarray(st.u)
                 t = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y.copy()
                 if refit:
-                    moved = any(e.cand.side != "output" for e in fixed.effects)
-                    R0[i] = ctx.regressor(i, ue) if moved else ctx.regressor(i)
+                    R0[i] = ctx.regressor(i, ue if moved else None, ref)
                 else:
                     t = t - P
                 targets[i] = t
-            knots_by_tau = {
-                tau: self._knots(
-                    ctx, [ins.get(i, ctx.recs[i].u) for i in range(len(ctx.recs))], tau
-                )
-                for tau in self.taus
-            }
-            # a two-way split of the training blocks chooses tau and lambda: the increments
-            # are fitted on one half and scored on the other, about the base refitted on all
-            # training samples (a base refitted on half of them extrapolates badly to the
-            # other half: 3x the held-out error on the built-in SS15 rate model)
-            inner = targets
-            if refit:
-                th = ctx.refit_base(fixed.effects, ref, train, drift).theta
-                assert th is not None
-                inner = {i: targets[i] - R0[i] @ th for i in todo}
-            halves = [
-                [train[i] & ((ctx.recs[i].block // 2) % 2 == h) for i in range(len(ctx.recs))]
-                for h in (0, 1)
-            ]
-            best = None
-            for tau in self.taus:
-                kn = knots_by_tau[tau]
-                systems = [
-                    self._system(ctx, todo, ins, inner, R0, hv, tau, kn, drift, False)
-                    for hv in halves
-                ]
-                for lam in self.LAMBDAS:
-                    err = 0.0
-                    for h in (0, 1):
-                        x = self._solve(ctx, systems[1 - h], lam, kn.size, False)
-                        N, b, yy, _ = systems[h]
-                        err += max(float(x @ N @ x - 2.0 * x @ b + yy), 0.0)
-                    if best is None or err < best[0]:
-                        best = (err, lam, np.array([tau]), kn, None)
-            assert best is not None
-            _, lam, xt, kn, _ = best
-            full = self._system(ctx, todo, ins, targets, R0, train, float(xt[0]), kn, drift, refit)
+            if choice is None:
+                choice = self._choose(ctx, fixed, ref, train, drift, todo, ins, targets, R0)
+            tau, lam, kn = choice
+            full = self._system(ctx, todo, ins, targets, R0, train, tau, kn, drift, refit)
             sol = self._solve(ctx, full, lam, kn.size, refit)
             theta0 = sol[: ctx.n_theta] if refit else None
             inc = sol[ctx.n_theta :] if refit else sol
-            best = (best[0], lam, xt, kn, theta0)
-            if refit:
-                assert theta0 is not None
-                ref = Base(theta0)
+            clone = copy.copy(self)
+            clone.__dict__.pop("_blocks", None)
+            clone.fixed = dict(self.fixed)
+            clone.last_fit = None
+            clone.fit_result = _Fit(
+                kn, self.levels.copy(), inc.reshape(kn.size - 1, m), lam, theta0
+            )
+            base = Base(theta0, states=ref.states) if refit else ref
+            eff = FittedEffect(clone, np.array([tau]))
+            chain = ctx.choose_states(Chain(base, [*fixed.effects, eff]), drift)
+            if chain.base is base:
+                break
+            ref = chain.base  # other initial states (same weights): solve again with them
+        self.last_fit = cast(RateFamilyCandidate, chain.effects[-1].cand)
+        return chain
+
+    def _choose(
+        self,
+        ctx: Context,
+        fixed: Chain,
+        ref: Base,
+        train: list[Mask],
+        drift: bool,
+        todo: list[int],
+        ins: dict[int, Array],
+        targets: dict[int, Array],
+        R0: dict[int, sp.csr_matrix],
+    ) -> tuple[float, float, Array]:
+        """Choose ``(tau, lambda, knots)`` on a two-way split of the training blocks.
+
+        The increments are fitted on one half and scored on the other, about the base
+        refitted on all training samples (a base refitted on half of them extrapolates badly
+        to the other half: 3x the held-out error on the built-in SS15 rate model).
+        """
+        inner = targets
+        if R0:
+            th = ctx.refit_base(fixed.effects, ref, train, drift, choose=False).theta
+            assert th is not None
+            inner = {i: targets[i] - R0[i] @ th for i in todo}
+        halves = [
+            [train[i] & ((ctx.recs[i].block // 2) % 2 == h) for i in range(len(ctx.recs))]
+            for h in (0, 1)
+        ]
+        best: tuple[float, float, float, Array] | None = None
+        for tau in self.taus:
+            kn = self._knots(ctx, [ins.get(i, ctx.recs[i].u) for i in range(len(ctx.recs))], tau)
+            systems = [
+                self._system(ctx, todo, ins, inner, R0, hv, tau, kn, drift, False) for hv in halves
+            ]
+            for lam in self.LAMBDAS:
+                err = 0.0
+                for h in (0, 1):
+                    x = self._solve(ctx, systems[1 - h], lam, kn.size, False)
+                    N, b, yy, _ = systems[h]
+                    err += max(float(x @ N @ x - 2.0 * x @ b + yy), 0.0)
+                if best is None or err < best[0]:
+                    best = (err, tau, lam, kn)
         assert best is not None
-        _, lam, xt, kn, theta0 = best
-        m = self.levels.size * (self.levels.size - 1) // 2 + 1
-        clone = copy.copy(self)
-        clone.__dict__.pop("_blocks", None)
-        clone.fixed = dict(self.fixed)
-        clone.last_fit = None
-        clone.fit_result = _Fit(kn, self.levels.copy(), inc.reshape(kn.size - 1, m), lam, theta0)
-        self.last_fit = clone
-        eff = FittedEffect(clone, xt)
-        return fixed.plus(eff, Base(theta0) if refit and theta0 is not None else None)
+        return best[1], best[2], best[3]
 
     def _system(
         self,
