@@ -185,24 +185,37 @@ public:
     // line crossed and using the midpoint rule on each piece is exact.
     double antidiagonal_integral(double c, double b0, double b1) const {
         if (!(b1 > b0)) return 0.0;
-        // Break points: beta = levels[k] and beta = c - levels[k] inside (b0, b1).
-        std::vector<double> cuts;
-        cuts.reserve(8);
-        cuts.push_back(b0);
-        const auto add_range = [&](double lo, double hi, bool mirrored) {
-            auto first = std::upper_bound(levels_.begin(), levels_.end(), lo);
-            for (auto it = first; it != levels_.end() && *it < hi; ++it) cuts.push_back(mirrored ? c - *it : *it);
+        // Break points: beta = levels[k] and beta = c - levels[k] inside (b0, b1), visited in
+        // ascending order by merging the two sorted runs (no allocation, no sort: a cut of a
+        // neutral state's piece in a real-time step walks the cells once).
+        auto a = std::upper_bound(levels_.begin(), levels_.end(), b0);
+        const auto a_end = std::lower_bound(a, levels_.end(), b1);
+        // c - levels[k] ascending means levels[k] descending, from below c - b0 down to above c - b1
+        auto m = std::lower_bound(levels_.begin(), levels_.end(), c - b0);
+        const auto m_end = std::upper_bound(levels_.begin(), levels_.end(), c - b1);
+        // b0 and b1 take their sorted places too: a mirrored cut c - levels[k] can round to
+        // just outside [b0, b1], and the sum must be the one over the sorted cuts exactly.
+        bool b0_left = true, b1_left = true;
+        const auto next = [&](double& x) {  // the smallest cut not yet taken; false at the end
+            int src = -1;
+            if (b0_left) { x = b0; src = 0; }
+            if (a != a_end && (src < 0 || *a < x)) { x = *a; src = 1; }
+            if (m > m_end && (src < 0 || c - *(m - 1) < x)) { x = c - *(m - 1); src = 2; }
+            if (b1_left && (src < 0 || b1 < x)) { x = b1; src = 3; }
+            if (src == 0) b0_left = false;
+            else if (src == 1) ++a;
+            else if (src == 2) --m;
+            else if (src == 3) b1_left = false;
+            return src >= 0;
         };
-        add_range(b0, b1, false);
-        add_range(c - b1, c - b0, true);
-        cuts.push_back(b1);
-        std::sort(cuts.begin(), cuts.end());
-        double total = 0.0;
-        for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
-            const double lo = cuts[k], hi = cuts[k + 1];
-            if (!(hi > lo)) continue;
-            const double m = 0.5 * (lo + hi);
-            total -= d_beta_interior(c - m, m) * (hi - lo);
+        double total = 0.0, lo = 0.0, hi = 0.0;
+        next(lo);
+        while (next(hi)) {
+            if (hi > lo) {
+                const double mid = 0.5 * (lo + hi);
+                total -= d_beta_interior(c - mid, mid) * (hi - lo);
+            }
+            lo = hi;
         }
         return total;
     }

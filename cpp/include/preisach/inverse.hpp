@@ -13,9 +13,19 @@
 // with A the antidiagonal integral of everett.hpp.  E is bilinear in each table cell, so the
 // output is linear in u inside a cell for the staircase pieces and quadratic between the
 // break points of an antidiagonal piece (grid lines crossed by u and by c - u).  The search
-// walks the cells outward from u0 and takes the first one whose end values bracket the
-// target; the root is the closed-form solution of that cell's linear (or quadratic, fitted
-// exactly through three evaluations) polynomial.
+// goes through the stack pieces outward from u0 and, inside a piece's stretch, takes the
+// first cell whose end values bracket the target; the root is the closed-form solution of
+// that cell's linear (or quadratic, fitted exactly through three evaluations) polynomial.
+//
+// Cost of one step (the real-time bound).  In a model with mu >= 0 the output is monotone
+// along the excursion, so inside each stretch the bracketing cell is found by a binary
+// search over the cell ends (E at a grid line is one look-up; an antidiagonal piece's
+// integral at a break point is a prefix sum the simulator precomputes once per piece when
+// the state is set, Simulator::prepare): O(log n) per stack piece crossed, n the levels,
+// instead of a walk over up to 2 n cells.  Applying the input then cuts the stack as the
+// simulator does (EverettTable::antidiagonal_integral walks the wiped part of an
+// antidiagonal piece once: a neutral state's piece is wiped part by part over a run).
+// Non-monotone models keep the walk (the first crossing need not be where a bisection lands).
 //
 // Which solution (the model need not be monotone):
 //   * a target above the current output is looked for rising, below it falling; in a
@@ -48,6 +58,7 @@ namespace preisach {
 class Inverter {
 public:
     Inverter(const EverettTable& table, const State& state) : sim_(table, state), t_(&table) {
+        sim_.prepare();
         const std::size_t n = table.size();
         monotone_ = true;
         const double tol = 1e-12 * std::max(1.0, std::abs(table.node(n - 1, 0)));
@@ -59,7 +70,10 @@ public:
         }
     }
 
-    void reset(const State& state) { sim_.reset(state); }
+    void reset(const State& state) {
+        sim_.reset(state);
+        sim_.prepare();
+    }
     double input() const noexcept { return sim_.input(); }
     double output() const noexcept { return sim_.output(); }
     State state() const { return sim_.state(); }
@@ -70,6 +84,9 @@ public:
     // Targets so far that no excursion reached (given the nearest reachable output).
     std::size_t unreachable() const noexcept { return unreachable_; }
     void clear_unreachable() noexcept { unreachable_ = 0; }
+    // Table cells (or quadratic sub-intervals) examined one by one by the searches so far:
+    // the work a step does beyond its binary searches (tests bound it per step).
+    std::size_t cells_walked() const noexcept { return walked_; }
 
     // The input (volts, inside the model range) that the next target `y` needs, without
     // applying it; `reached` tells whether the output gets to `y` exactly (to rounding).
@@ -172,8 +189,8 @@ private:
                 ua = std::max(ua, t1);
                 const double t2 = std::min(c - m.p.b0, u_max);  // the slope is wiped out
                 if (t2 > ua) {
-                    const double a_ua = c - ua < bstar ? cm - t_->antidiagonal_integral(c, c - ua, bstar) : cm;
-                    if (quad_up(ua, t2, m, a_ua, h, hprev, u_out, best)) return true;
+                    const auto& ad = sim_.ad_[static_cast<std::size_t>(m.ad)];
+                    if (quad_up(ua, t2, m, ad, cm - ad.prefix(bstar), h, hprev, u_out, best)) return true;
                 }
                 ua = std::max(ua, t2);
             }
@@ -195,7 +212,31 @@ private:
         const GridPos pa = t.locate(ua, true);
         std::size_t i = pa.i;
         double f0 = pa.f;
+        // skip the cells whose start is still below the goal (binary search), unless the
+        // target is in the first cell (small steps: the common case, one look-up)
+        if (monotone_ && i + 2 < L.size() && ub > L[i + 1] && t.value(GridPos{i + 1, 0.0}, pb) < goal) {
+            std::size_t lo = i + 2, hi = std::min<std::size_t>(
+                static_cast<std::size_t>(std::lower_bound(L.begin(), L.end(), ub) - L.begin()), L.size() - 1);
+            // largest i' in [i + 1, hi) with E(l_i', b*) < goal: the walk restarts at cell i'
+            std::size_t found = i + 1;
+            while (lo < hi) {
+                const std::size_t mid = lo + (hi - lo) / 2;
+                if (t.value(GridPos{mid, 0.0}, pb) < goal) {
+                    found = mid;
+                    lo = mid + 1;
+                } else {
+                    hi = mid;
+                }
+            }
+            if (found != i) {
+                keep(best, L[found], std::abs(t.value(GridPos{found, 0.0}, pb) - goal));
+                i = found;
+                f0 = 0.0;
+                hprev = base + t.value(GridPos{i, 0.0}, pb);
+            }
+        }
         for (;;) {
+            ++walked_;
             const double l0 = L[i], w = L[i + 1] - l0;
             const bool last = ub <= L[i + 1];
             const double f1 = last ? (ub - l0) / w : 1.0;
@@ -218,25 +259,61 @@ private:
     }
 
     // The rise cuts the antidiagonal piece m (phi = c - beta): on [ua, ub]
-    // h(u) = S_m + A(c, b0_m, c - u) + E(u, c - u), quadratic between break points.
-    bool quad_up(double ua, double ub, const Node& m, double a_ua, double h, double& hprev, double& u_out,
-                 Best& best) const {
+    // h(u) = S_m + A(c, b0_m, c - u) + E(u, c - u), quadratic between the points u = c - x[k]
+    // (x the break points of the piece's prefix integrals).  A(c, b0_m, c - u) is taken as
+    // `off + P(c - u)`, off = (m's contribution up to b*) - P(b*), as the simulator cuts it.
+    template <class AD>
+    bool quad_up(double ua, double ub, const Node& m, const AD& ad, double off, double h, double& hprev,
+                 double& u_out, Best& best) const {
         const double c = m.p.v;
-        breaks(ua, ub, c);
-        double x0 = ua, a0 = a_ua;
-        double g0 = m.S + a0 + (*t_)(x0, c - x0);
-        for (std::size_t k = 1; k < brk_.size(); ++k) {
-            const double x1 = brk_[k];
-            if (!(x1 > x0)) continue;
-            const double xm = 0.5 * (x0 + x1);
-            const double am = a0 - slice(c, c - xm, c - x0), a1 = a0 - slice(c, c - x1, c - x0);
-            const double gm = m.S + am + (*t_)(xm, c - xm), g1 = m.S + a1 + (*t_)(x1, c - x1);
-            if (quad_root(x0, x1, g0, gm, g1, h, hprev, u_out, best)) return true;
-            x0 = x1;
-            a0 = a1;
-            g0 = g1;
+        const auto& X = ad.x;
+        const double bhi = c - ua, blo = c - ub;  // beta runs down from bhi to blo
+        // k: the next break point below bhi (beta), i.e. the next one above ua (u)
+        std::ptrdiff_t k = (std::lower_bound(X.begin(), X.end(), bhi) - X.begin()) - 1;
+        const std::ptrdiff_t k_end =
+            std::upper_bound(X.begin(), X.end(), blo) - X.begin();  // first index with x > blo
+        const auto at = [&](double u) { return m.S + off + ad.prefix(c - u) + (*t_)(u, c - u); };
+        double x0 = ua;
+        double g0 = at(x0);
+        const auto below = [&](std::ptrdiff_t q) {  // h at the break point u = c - x[q] < target
+            const double xq = X[static_cast<std::size_t>(q)];
+            return m.S + off + ad.P[static_cast<std::size_t>(q)] + (*t_)(c - xq, xq) < h;
+        };
+        // skip the break points still below the goal, unless the target is before the first
+        if (monotone_ && k >= k_end && below(k)) {
+            std::ptrdiff_t lo = k_end, hi = k, found = k;  // smallest k' with h(c - x[k']) < h
+            while (lo < hi) {
+                const std::ptrdiff_t mid = lo + (hi - lo) / 2;
+                if (below(mid)) {
+                    found = mid;
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            if (found <= k) {
+                const double xf = X[static_cast<std::size_t>(found)];
+                x0 = c - xf;
+                g0 = m.S + off + ad.P[static_cast<std::size_t>(found)] + (*t_)(x0, xf);
+                hprev = g0;
+                keep(best, x0, std::abs(g0 - h));
+                k = found - 1;
+            }
         }
-        return false;
+        for (;;) {
+            ++walked_;
+            const bool inner = k >= k_end;
+            const double x1 = inner ? c - X[static_cast<std::size_t>(k)] : ub;
+            if (x1 > x0) {
+                const double xm = 0.5 * (x0 + x1);
+                const double gm = at(xm), g1 = at(x1);
+                if (quad_root(x0, x1, g0, gm, g1, h, hprev, u_out, best)) return true;
+                x0 = x1;
+                g0 = g1;
+            }
+            if (!inner) return false;
+            --k;
+        }
     }
 
     // ---- falling: the output as a function of the input along u0 -> u_min ---------------
@@ -277,7 +354,30 @@ private:
         const GridPos pu = t.locate(ua, false);
         std::size_t j = pu.i;
         double f0 = pu.f;
+        // skip the cells whose top is still above the goal, unless the target is in the first
+        if (monotone_ && j > 0 && lb < L[j] && t.value(pm, GridPos{j - 1, 1.0}) < goal) {
+            const std::size_t jl = static_cast<std::size_t>(
+                std::max<std::ptrdiff_t>(std::upper_bound(L.begin(), L.end(), lb) - L.begin() - 1, 0));
+            // smallest j' in [jl, j) with E(M, l_{j'+1}) < goal: the walk restarts there
+            std::size_t lo = jl, hi = j - 1, found = j - 1;
+            while (lo < hi) {
+                const std::size_t mid = lo + (hi - lo) / 2;
+                if (t.value(pm, GridPos{mid, 1.0}) < goal) {
+                    found = mid;
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            if (found != j) {
+                keep(best, L[found + 1], std::abs(t.value(pm, GridPos{found, 1.0}) - goal));
+                j = found;
+                f0 = 1.0;
+                hprev = base - t.value(pm, GridPos{j, 1.0});
+            }
+        }
         for (;;) {
+            ++walked_;
             const double l0 = L[j], w = L[j + 1] - l0;
             const bool last = lb >= l0;
             const double f1 = last ? (lb - l0) / w : 0.0;
@@ -299,49 +399,53 @@ private:
         }
     }
 
-    // The fall cuts the antidiagonal piece m: on [lb, ua] h(u) = S_m + A(c, b0_m, u).
+    // The fall cuts the antidiagonal piece m: on [lb, ua] h(u) = S_m + A(c, b0_m, u),
+    // quadratic between the break points x[k]; A(c, b0_m, u) = a_ua - (P(ua) - P(u)).
     bool quad_down(double ua, double lb, const Node& m, double a_ua, double h, double& hprev, double& u_out,
                    Best& best) const {
-        const double c = m.p.v;
-        breaks(lb, ua, c);
-        std::reverse(brk_.begin(), brk_.end());
-        double x0 = ua, a0 = a_ua, g0 = m.S + a_ua;
-        for (std::size_t k = 1; k < brk_.size(); ++k) {
-            const double x1 = brk_[k];
-            if (!(x1 < x0)) continue;
-            const double xm = 0.5 * (x0 + x1);
-            const double am = a0 - slice(c, xm, x0), a1 = a0 - slice(c, x1, x0);
-            const double gm = m.S + am, g1 = m.S + a1;
-            if (quad_root(x0, x1, g0, gm, g1, h, hprev, u_out, best)) return true;
-            x0 = x1;
-            a0 = a1;
-            g0 = g1;
+        const auto& ad = sim_.ad_[static_cast<std::size_t>(m.ad)];
+        const auto& X = ad.x;
+        const double off = m.S + a_ua - ad.prefix(ua);
+        std::ptrdiff_t k = (std::lower_bound(X.begin(), X.end(), ua) - X.begin()) - 1;  // next x below ua
+        const std::ptrdiff_t k_end = std::upper_bound(X.begin(), X.end(), lb) - X.begin();
+        double x0 = ua, g0 = m.S + a_ua;
+        // skip the break points still above the goal, unless the target is before the first
+        if (monotone_ && k >= k_end && off + ad.P[static_cast<std::size_t>(k)] > h) {
+            std::ptrdiff_t lo = k_end, hi = k, found = k;  // smallest k' with h(x[k']) > h
+            while (lo < hi) {
+                const std::ptrdiff_t mid = lo + (hi - lo) / 2;
+                if (off + ad.P[static_cast<std::size_t>(mid)] > h) {
+                    found = mid;
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            if (found <= k) {
+                x0 = X[static_cast<std::size_t>(found)];
+                g0 = off + ad.P[static_cast<std::size_t>(found)];
+                hprev = g0;
+                keep(best, x0, std::abs(g0 - h));
+                k = found - 1;
+            }
         }
-        return false;
+        for (;;) {
+            ++walked_;
+            const bool inner = k >= k_end;
+            const double x1 = inner ? X[static_cast<std::size_t>(k)] : lb;
+            if (x1 < x0) {
+                const double xm = 0.5 * (x0 + x1);
+                const double gm = off + ad.prefix(xm), g1 = off + ad.prefix(x1);
+                if (quad_root(x0, x1, g0, gm, g1, h, hprev, u_out, best)) return true;
+                x0 = x1;
+                g0 = g1;
+            }
+            if (!inner) return false;
+            --k;
+        }
     }
 
     // ---- shared pieces ---------------------------------------------------------------------
-    // Sorted break points of an antidiagonal piece c in [lo, hi]: lo, the grid lines u = l_k
-    // and c - u = l_k inside, hi.  The output is quadratic between neighbours.
-    void breaks(double lo, double hi, double c) const {
-        const auto& L = t_->levels();
-        brk_.clear();
-        brk_.push_back(lo);
-        for (auto it = std::upper_bound(L.begin(), L.end(), lo); it != L.end() && *it < hi; ++it) brk_.push_back(*it);
-        for (auto it = std::upper_bound(L.begin(), L.end(), c - hi); it != L.end() && *it < c - lo; ++it)
-            brk_.push_back(c - *it);
-        brk_.push_back(hi);
-        std::sort(brk_.begin(), brk_.end());
-    }
-
-    // Antidiagonal integral over [b0, b1] inside one sub-interval between break points: the
-    // integrand is linear there, so the midpoint rule is exact.
-    double slice(double c, double b0, double b1) const {
-        if (!(b1 > b0)) return 0.0;
-        const double mid = 0.5 * (b0 + b1);
-        return -t_->d_beta(c - mid, mid) * (b1 - b0);
-    }
-
     // h(s) on x = x0 + s (x1 - x0), s in [0, 1], is the quadratic through (0, g0), (1/2, gm),
     // (1, g1); take its first root s (nearest x0) or update the nearest value.
     static bool quad_root(double x0, double x1, double g0, double gm, double g1, double h, double& hprev,
@@ -384,7 +488,7 @@ private:
     const EverettTable* t_;
     bool monotone_ = true;
     std::size_t unreachable_ = 0;
-    mutable std::vector<double> brk_;  // scratch: break points of an antidiagonal piece
+    mutable std::size_t walked_ = 0;
 };
 
 // Invert a whole target sequence from `state`: inputs, achieved outputs, reached flags, the

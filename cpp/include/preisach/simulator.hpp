@@ -57,11 +57,18 @@ public:
         nodes_.reserve(std::max<std::size_t>(k, 64));
         double acc = 0.0;
         live_ = 0.0;
+        ad_.clear();
         for (std::size_t i = 0; i < k; ++i) {
             Node nd{p[i], acc, p[i].antidiag ? 0.0 : (*t_)(p[i].v, p[i].b0)};
             const double end = state.piece_end(i);
-            const double c = p[i].antidiag ? t_->antidiagonal_integral(p[i].v, p[i].b0, end)
-                                           : nd.Eb0 - (*t_)(p[i].v, end);
+            double c;
+            if (p[i].antidiag) {  // its prefix integrals are built by prepare() (the inverter's)
+                nd.ad = static_cast<int>(ad_.size());
+                ad_.push_back(Antidiag{p[i].v, p[i].b0, end, {}, {}, {}, {}});
+                c = t_->antidiagonal_integral(p[i].v, p[i].b0, end);
+            } else {
+                c = nd.Eb0 - (*t_)(p[i].v, end);
+            }
             nodes_.push_back(nd);
             if (i + 1 < k) acc += c; else live_ = c;
         }
@@ -90,7 +97,7 @@ public:
                 m = up ? u : m;
             } else if (up) {  // reversal at a minimum: push a rising piece from cur_
                 s_last_ += live_;
-                nodes_.push_back(Node{Piece{cur_, u, false}, s_last_, 0.0});
+                nodes_.push_back(Node{Piece{cur_, u, false}, s_last_, 0.0, -1});
                 lo_ = cur_;
                 fix_ = cur_pos_;
                 live_ = t_->value(pu, fix_);
@@ -166,7 +173,66 @@ private:
         Piece p;
         double S;    // sum of the contributions of the pieces below this one
         double Eb0;  // constant pieces: E(M, b0), once the piece has stopped rising
+        int ad = -1; // antidiagonal pieces: index of their prefix integrals in ad_
     };
+
+    // Prefix integrals of an antidiagonal piece phi = c - beta over [b0, end] (its extent
+    // when the state was set: antidiagonal pieces are never created by stepping, only cut
+    // or popped).  Between neighbouring break points x[k] (grid lines beta = l_k and
+    // alpha = c - beta = l_k) the integrand -dE/dbeta(c - beta, beta) is linear: g[k] is
+    // its value at the middle of [x[k], x[k+1]], s[k] its slope, P[k] = A(c, x[0], x[k]).
+    // So A(c, lo, hi) costs two binary searches instead of a walk over the cells crossed
+    // (the walk is done once, by prepare()).  The simulator itself keeps cutting pieces with
+    // EverettTable::antidiagonal_integral (a walk over the wiped part only: each part of a
+    // piece is wiped once, so it is amortised O(1) per sample), which keeps its outputs bit
+    // for bit those of the rate-dependent simulator and of earlier versions.
+    struct Antidiag {
+        double c, b0, end;
+        std::vector<double> x, P, g, s;
+
+        bool built() const noexcept { return !x.empty(); }
+
+        void build(const EverettTable& t) {
+            const auto& L = t.levels();
+            x.clear();
+            x.push_back(b0);
+            for (auto it = std::upper_bound(L.begin(), L.end(), b0); it != L.end() && *it < end; ++it)
+                x.push_back(*it);
+            for (auto it = std::upper_bound(L.begin(), L.end(), c - end); it != L.end() && *it < c - b0; ++it)
+                x.push_back(c - *it);
+            x.push_back(end);
+            std::sort(x.begin(), x.end());
+            x.erase(std::unique(x.begin(), x.end()), x.end());
+            const std::size_t n = x.size();
+            P.assign(n, 0.0);
+            g.assign(n > 1 ? n - 1 : 0, 0.0);
+            s.assign(g.size(), 0.0);
+            for (std::size_t k = 0; k + 1 < n; ++k) {
+                const double lo = x[k], hi = x[k + 1], d = hi - lo;
+                const double q1 = lo + 0.25 * d, q3 = lo + 0.75 * d;  // interior: one cell each
+                const double v1 = -t.d_beta(c - q1, q1), v3 = -t.d_beta(c - q3, q3);
+                g[k] = 0.5 * (v1 + v3);
+                s[k] = d > 0.0 ? (v3 - v1) / (0.5 * d) : 0.0;
+                P[k + 1] = P[k] + g[k] * d;
+            }
+        }
+
+        // A(c, x[0], b) for b in [b0, end] (clamped).
+        double prefix(double b) const noexcept {
+            if (!(b > x.front())) return 0.0;
+            if (b >= x.back()) return P.back();
+            const std::size_t k =
+                static_cast<std::size_t>(std::upper_bound(x.begin(), x.end(), b) - x.begin()) - 1;
+            const double tt = b - x[k], d = x[k + 1] - x[k];
+            return P[k] + g[k] * tt + 0.5 * s[k] * tt * (tt - d);
+        }
+    };
+
+    // Build the prefix integrals of every antidiagonal piece (the inverter searches them).
+    void prepare() {
+        for (Antidiag& a : ad_)
+            if (!a.built()) a.build(*t_);
+    }
 
     void update_output() noexcept { y_ = y_min_ + 2.0 * (s_last_ + live_); }
 
@@ -217,7 +283,7 @@ private:
         } else {
             bstar = u_min_;
         }
-        nodes_.push_back(Node{Piece{bstar, u, false}, s_new, 0.0});
+        nodes_.push_back(Node{Piece{bstar, u, false}, s_new, 0.0, -1});
         fix_ = bstar == cur_ ? cur_pos_ : t_->position(bstar);
         cur_pos_ = t_->position(u);
         live_ = t_->value(cur_pos_, fix_);
@@ -268,6 +334,7 @@ private:
 
     const EverettTable* t_;
     std::vector<Node> nodes_;  // the boundary pieces, lowest beta first, with cached sums
+    std::vector<Antidiag> ad_; // prefix integrals of the antidiagonal pieces of the start state
     double u_min_ = 0.0, u_max_ = 0.0, y_min_ = 0.0;
     GridPos cur_pos_{0, 0.0};  // grid position of the current input
     GridPos fix_{0, 0.0};      // grid position of the last constant piece's fixed coordinate
