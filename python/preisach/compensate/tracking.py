@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..model import PreisachModel
+from ..model import PreisachModel, State
 from .inverse import invert
 
 __all__ = [
@@ -380,6 +380,7 @@ def run_tracking(
     ki: float = _KI,
     input_gain: float = _GAIN,
     progress: Callable[[str], None] | None = None,
+    feedforward: Callable[[NDArray[np.float64], State], NDArray[np.float64]] | None = None,
 ) -> TrackingResult:
     """Run every reference every way on ``loop`` and score it.
 
@@ -400,6 +401,12 @@ def run_tracking(
         Model-input volts per controller unit.
     progress : callable, optional
         Called with ``"reference mode"`` before each run.
+    feedforward : callable, optional
+        ``feedforward(r, state)`` returns the drive (model-input V) that makes the plant
+        follow ``r`` (V) from ``state`` (negative saturation), for the feedforward modes;
+        default the exact inverse of ``model``.  E.g. the inverse of a diagnosed augmented
+        model (:func:`preisach.compensate.augmented.invert_augmented`).  Its drive is
+        clamped to the model's input range; ``unreachable`` is then not counted (0).
 
     Returns
     -------
@@ -422,12 +429,23 @@ def run_tracking(
     for ref in references:
         lead = np.linspace(model.y_min, ref.y[0], n_lead, endpoint=False)
         r_all = np.r_[lead, ref.y]  # the reference after the input frame
-        ff = invert(model, r_all, s_neg)
+        if feedforward is None:
+            inv = invert(model, r_all, s_neg)
+            ff_u, ff_unreachable = inv.input, int(inv.unreachable)
+        else:
+            ff_u = np.clip(
+                np.asarray(feedforward(r_all, s_neg), dtype=float), model.u_min, model.u_max
+            )
+            if ff_u.shape != r_all.shape:
+                raise ValueError(
+                    f"feedforward: returned shape {ff_u.shape}, expected {r_all.shape}"
+                )
+            ff_unreachable = 0
         lin = model.u_min + (r_all - model.y_min) * gain_lin
         for mode in modes:
             if progress is not None:
                 progress(f"{ref.name} {mode}")
-            drive = lin if mode in ("uncompensated", "pi") else ff.input
+            drive = lin if mode in ("uncompensated", "pi") else ff_u
             if mode == "pi":
                 drive = np.full_like(lin, model.u_min)  # the loop alone, from the hold
             u_body = np.r_[pre, drive]
@@ -453,7 +471,7 @@ def run_tracking(
                     max_error_pct=float(100 * np.max(np.abs(err)) / stroke),
                     rms_error_pct=float(100 * np.sqrt(np.mean(err**2)) / stroke),
                     effort=effort,
-                    unreachable=int(ff.unreachable) if "feedforward" in mode else 0,
+                    unreachable=ff_unreachable if "feedforward" in mode else 0,
                     max_drive=float(np.max(np.abs(u[s0:s1]))),
                     t=np.arange(s1 - s0) * ts,
                     r=r_full[s0:s1],
