@@ -417,28 +417,32 @@ class Context:
         P_pre = _core.simulate_batch(table, pre, states, "clamp")[0]
         shift = P_pre[:, -1] - P_ref[kw - 1]
         m = r.usable
-        if not outs and not drift:
-            # residual e - d with d = P_state - P_ref: the prefix exactly, a constant after it
-            head = m[:kw]
-            sse = np.sum(((r.y[:kw] - P_pre) ** 2)[:, head], axis=1)
-            tail = m.copy()
-            tail[:kw] = False
-            et = (r.y - P_ref)[tail]
-            sse = sse + float(et @ et) - 2.0 * shift * float(et.sum()) + shift**2 * et.size
-        else:
-            sse = np.empty(len(states))
+        # the output blocks linearised about the current state's output (as in refit_base):
+        # the Preisach-level target; exact for a chain without output blocks
+        target = r.y - (self.output_side(i, P_ref, outs, st) - P_ref) if outs else r.y
+        # residual e - d with d = P_state - P_ref: the prefix exactly, a constant after it
+        head = m[:kw]
+        sse = np.sum(((target[:kw] - P_pre) ** 2)[:, head], axis=1)
+        tail = m.copy()
+        tail[:kw] = False
+        et = (target - P_ref)[tail]
+        sse = sse + float(et @ et) - 2.0 * shift * float(et.sum()) + shift**2 * et.size
+        if outs or drift:  # the few best again, exactly (output blocks, drift projected off)
             A = Ginv = None
             if drift:
                 A = self.drift_basis(i)[m]
                 Ginv = np.linalg.inv(self._drift_system(A)[0])
-            for k in range(len(states)):
+            top = {0, *np.argsort(sse)[:5].tolist()}
+            exact = np.full(len(states), np.inf)
+            for k in top:
                 P = P_ref + shift[k]
                 P[:kw] = P_pre[k]
                 y = self.output_side(i, P, outs, st) if outs else P
                 res = (r.y - y)[m]
                 if A is not None and Ginv is not None:
                     res = res - A @ (Ginv @ (A.T @ res))
-                sse[k] = float(res @ res)
+                exact[k] = float(res @ res)
+            sse = exact
         k_best = int(np.argmin(sse))
         # keep the current history unless another fits clearly better (no churn on ties)
         if sse[k_best] >= sse[0] - 1e-9 * max(float(sse[0]), 1e-300):
@@ -762,10 +766,10 @@ class Context:
         if ref.states != prob.fixed.base.states:  # weights for the states chosen last
             from .problem import Problem
 
-            again = Problem(
+            last = Problem(
                 self, cand, Chain(ref, fixed.effects), train, drift, profile=True, reference=eff
             )
-            ref = Base(again.theta(eff.x), states=ref.states)
+            ref = Base(last.theta(eff.x), states=ref.states)
         return fixed.plus(eff, ref)
 
     def refits(self, fixed: Chain) -> bool:

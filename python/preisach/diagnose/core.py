@@ -7,6 +7,7 @@ import os
 import time
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, Callable, TypeVar, Union, cast
 
 import numpy as np
@@ -23,7 +24,7 @@ from .effects import EffectBlock
 from .locate import analyse_residuals
 from .report import DiagnosisReport, EffectReport, candidate_table, unexplained_of, where_of
 from .scoring import sign_flip_p
-from .selection import run_selection
+from .selection import Selection, run_selection
 
 __all__ = ["diagnose", "separating_experiment"]
 
@@ -249,6 +250,66 @@ def diagnose(
 
     """
     t_start = time.perf_counter()
+    _check_options(model, noise_ratio, min_gain, noise_factor, alpha, max_effects)
+    ident_in = (
+        list(getattr(model, "identification", []))
+        if identification is None
+        else _load(identification)
+    )
+    recs_in = _drop_identification(_load(recordings), ident_in)
+    cands = _resolve_candidates(candidates)
+    do_refit = bool(ident_in) if refit is None else bool(refit)
+    progress, bar = line_progress(progress, "diagnose", unit="step")
+
+    # 1. prepare the data: initial states, time blocks, the context of the candidates
+    recs = prepare_recordings(
+        model,
+        recs_in,
+        initial_states=initial_states,
+        block_length=block_length,
+        identification=ident_in,
+    )
+    ctx = Context(model, recs, max_delay=max_delay, refit=do_refit, refit_levels=refit_levels)
+    # 2. the baseline: the given model's predictions and the noise level
+    base = _baseline(ctx, sigma)
+    if progress:
+        progress(
+            f"{len(ctx.diag)} recordings ({len(recs) - len(ctx.diag)} for identification), "
+            f"{sum(r.n for r in recs)} samples; noise {1e3 * base.sigma:.3g} mV"
+        )
+    # 3. greedy forward selection on held-out data
+    sel = run_selection(
+        ctx,
+        cands,
+        sigma=base.sigma,
+        cv=cv,
+        min_gain=min_gain,
+        noise_factor=noise_factor,
+        alpha=alpha,
+        max_effects=int(max_effects),
+        progress=progress,
+    )
+    # 4. the kept effects refitted on all usable samples
+    final = _final_fits(ctx, cands, sel, do_refit)
+    # 5. the augmented model and the report
+    report = _report(
+        model, ctx, sel, base, final, do_refit, noise_ratio, time.perf_counter() - t_start
+    )
+    if progress:
+        progress(f"verdict: {report.verdict} ({report.seconds:.1f} s)")
+    bar.close()
+    return report
+
+
+def _check_options(
+    model: PreisachModel,
+    noise_ratio: float,
+    min_gain: float,
+    noise_factor: float,
+    alpha: float,
+    max_effects: int,
+) -> None:
+    """Reject a wrong model type or option values, naming the argument."""
     if not isinstance(model, PreisachModel):
         raise TypeError(f"model: expected a PreisachModel, got {type(model).__name__}")
     if not (np.isfinite(noise_ratio) and noise_ratio >= 1):
@@ -260,12 +321,10 @@ def diagnose(
         raise ValueError(f"alpha: must lie in (0, 1), got {alpha!r}")
     if int(max_effects) < 0:
         raise ValueError(f"max_effects: must be >= 0, got {max_effects!r}")
-    ident_in = (
-        list(getattr(model, "identification", []))
-        if identification is None
-        else _load(identification)
-    )
-    recs_in = _drop_identification(_load(recordings), ident_in)
+
+
+def _resolve_candidates(candidates: Sequence[str | Candidate] | None) -> list[Candidate]:
+    """Candidate objects for names (an effect name stands for all its forms) or instances."""
     cands: list[Candidate] = []
     for c in candidates if candidates is not None else list(CANDIDATES):
         if isinstance(c, Candidate):
@@ -280,20 +339,22 @@ def diagnose(
             )
     if len({c.key for c in cands}) != len(cands):
         raise ValueError("candidates: each candidate may appear only once")
-    do_refit = bool(ident_in) if refit is None else bool(refit)
-    progress, bar = line_progress(progress, "diagnose", unit="step")
+    return cands
 
-    recs = prepare_recordings(
-        model,
-        recs_in,
-        initial_states=initial_states,
-        block_length=block_length,
-        identification=ident_in,
-    )
-    ctx = Context(model, recs, max_delay=max_delay, refit=do_refit, refit_levels=refit_levels)
-    diag = ctx.diag
-    given = Chain(ctx.given)
-    pred0 = ctx.predict(given)
+
+@dataclass
+class _Baseline:
+    """The given model's predictions and residuals (NaN where not usable), and the noise."""
+
+    pred: list[np.ndarray]
+    res: list[np.ndarray]
+    sigma: float
+
+
+def _baseline(ctx: Context, sigma: float | None) -> _Baseline:
+    """Predict every recording with the given model; the noise from the data unless given."""
+    recs = ctx.recs
+    pred0 = ctx.predict(Chain(ctx.given))
     res0 = [np.where(r.usable, r.y - p, np.nan) for r, p in zip(recs, pred0)]
     if sigma is None:
         sig = np.array(
@@ -306,60 +367,59 @@ def diagnose(
         sigma_hat = float(sigma)
         if not (np.isfinite(sigma_hat) and sigma_hat >= 0):
             raise ValueError(f"sigma: must be a finite number >= 0 (V), got {sigma!r}")
-    if progress:
-        progress(
-            f"{len(diag)} recordings ({len(recs) - len(diag)} for identification), "
-            f"{sum(r.n for r in recs)} samples; noise {1e3 * sigma_hat:.3g} mV"
-        )
+    return _Baseline(pred0, res0, sigma_hat)
 
-    sel = run_selection(
-        ctx,
-        cands,
-        sigma=sigma_hat,
-        cv=cv,
-        min_gain=min_gain,
-        noise_factor=noise_factor,
-        alpha=alpha,
-        max_effects=int(max_effects),
-        progress=progress,
-    )
-    steps, kept = sel.steps, sel.kept
 
-    # final fits on all usable samples, in the order of selection
+@dataclass
+class _Final:
+    """The kept effects refitted on all usable samples."""
+
+    names: list[str]
+    chain: Chain
+    effects: list[EffectReport]
+    drift_eff: FittedEffect | None
+    ambiguous: list[dict[str, str]]
+
+
+def _full_pred(ctx: Context, ch: Chain, with_drift: bool) -> list[np.ndarray]:
+    """Predictions of every recording by ``ch``, with each one's drift fitted on it."""
+    preds = ctx.predict(ch)
+    if not with_drift:
+        return preds
+    return [
+        p + ctx.drift_basis(i) @ ctx.drift_fit(i, r.y - p, r.usable)
+        for i, (r, p) in enumerate(zip(ctx.recs, preds))
+    ]
+
+
+def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: bool) -> _Final:
+    """Refit the kept effects on all usable samples, in the order of selection.
+
+    As in the selection, effects kept before the drift are fitted without it, and the
+    weights are refitted with the drift where it was kept.
+    """
+    recs, diag, steps = ctx.recs, ctx.diag, sel.steps
     by_key = {c.key: c for c in cands}
-    names = [by_key[k].name for k in kept]
+    names = [by_key[k].name for k in sel.kept]
     all_train = [r.usable.copy() for r in recs]
-    drift_kept = "sensor_drift" in names
-    # as in the selection: effects kept before the drift are fitted without it, and the
-    # weights are refitted with the drift where it was kept
     base = ctx.refit_base([], ctx.given, all_train, False) if do_refit else ctx.given
     chain = Chain(base)
     effects: list[EffectReport] = []
     drift_eff: FittedEffect | None = None
     drift_curves: list[np.ndarray] = [np.zeros(r.n) for r in recs]
-
-    def full_pred(ch: Chain, with_drift: bool) -> list[np.ndarray]:
-        preds = ctx.predict(ch)
-        if not with_drift:
-            return preds
-        return [
-            p + ctx.drift_basis(i) @ ctx.drift_fit(i, r.y - p, r.usable)
-            for i, (r, p) in enumerate(zip(recs, preds))
-        ]
-
     drift_so_far = False
     ambiguous: list[dict[str, str]] = []
-    for k, key in enumerate(kept):
+    for k, key in enumerate(sel.kept):
         cand = by_key[key]
         name = cand.name
-        before = full_pred(chain, drift_so_far)
+        before = _full_pred(ctx, chain, drift_so_far)
         if isinstance(cand, DriftCandidate):
             drift_so_far = True
             if ctx.refits(chain):
                 chain = Chain(
                     ctx.refit_base(chain.effects, chain.base, all_train, True), chain.effects
                 )
-            after = full_pred(chain, True)
+            after = _full_pred(ctx, chain, True)
             plain = ctx.predict(chain)
             drift_curves = [a - b for a, b in zip(after, plain)]
             slopes, w = [], []
@@ -377,7 +437,7 @@ def diagnose(
             chain = ctx.fit(cand, chain, all_train, drift_so_far)
             eff = chain.effects[-1]
             eff.cov = ctx.covariance(chain, all_train, drift_so_far)
-            after = full_pred(chain, drift_so_far)
+            after = _full_pred(ctx, chain, drift_so_far)
         st = steps[k]
         sc = st.scores[key]
         gain = st.gains[key]
@@ -418,11 +478,11 @@ def diagnose(
         dsub = [recs[i] for i in diag]
         corr = [after[i] - before[i] for i in diag]
         params = cand.report_params(eff.x, eff.cov, ctx)
-        for key, v in cand.fixed.items():
-            params[key] = {
+        for pkey, v in cand.fixed.items():
+            params[pkey] = {
                 "value": float(v),
                 "std": 0.0,
-                "unit": dict(cand.block_type.PARAMS).get(key, ""),
+                "unit": dict(cand.block_type.PARAMS).get(pkey, ""),
                 "fixed": True,
             }
         if isinstance(cand, DriftCandidate):
@@ -444,8 +504,22 @@ def diagnose(
                 heldout_rmse_after=sc.rmse,
             )
         )
+    return _Final(names, chain, effects, drift_eff, ambiguous)
 
-    # augmented model and analyses
+
+def _report(
+    model: PreisachModel,
+    ctx: Context,
+    sel: Selection,
+    base: _Baseline,
+    final: _Final,
+    do_refit: bool,
+    noise_ratio: float,
+    seconds: float,
+) -> DiagnosisReport:
+    """Build the augmented model, the residual analyses, the noise test and the report."""
+    recs, diag, steps, kept = ctx.recs, ctx.diag, sel.steps, sel.kept
+    names, chain = final.names, final.chain
     base_model = model
     if do_refit:
         base_model = PreisachModel(
@@ -458,8 +532,8 @@ def diagnose(
         chain.effects, key=lambda e: ({"input": 0, "feedback": 1}.get(e.cand.side, 2), e.cand.order)
     )
     blocks: list[EffectBlock] = [e.cand.block(e.x, ctx.dt_min) for e in ordered]
-    if drift_eff is not None:
-        blocks.append(drift_eff.cand.block(drift_eff.x, ctx.dt_min))
+    if final.drift_eff is not None:
+        blocks.append(final.drift_eff.cand.block(final.drift_eff.x, ctx.dt_min))
     aug = AugmentedModel(
         base_model,
         blocks,
@@ -478,11 +552,16 @@ def diagnose(
         if kept
         else (sel.refit_baseline.rmse if sel.refit_baseline else rmse_before)
     )
-    res_after = final_score.residuals if kept else res0
-    pred_after = full_pred(chain, drift_kept)
+    res_after = final_score.residuals if kept else base.res
+    pred_after = _full_pred(ctx, chain, "sensor_drift" in names)
+    sigma_hat = base.sigma
     dsub = [recs[i] for i in diag]
     before_a = analyse_residuals(
-        dsub, [res0[i] for i in diag], [pred0[i] for i in diag], sigma_hat, u_span=ctx.u_span
+        dsub,
+        [base.res[i] for i in diag],
+        [base.pred[i] for i in diag],
+        sigma_hat,
+        u_span=ctx.u_span,
     )
     after_a = analyse_residuals(
         dsub,
@@ -503,16 +582,16 @@ def diagnose(
     aug.metadata["diagnosis"]["verdict"] = verdict
     notes = [
         f"{a['effect']} or {a['rival']}: equal within the noise; {a['experiment']}"
-        for a in ambiguous
+        for a in final.ambiguous
     ]
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "
             f"{1e3 * sel.refit_baseline.rmse:.4g} mV"
         )
-    report = DiagnosisReport(
+    return DiagnosisReport(
         verdict=verdict,
-        effects=effects,
+        effects=final.effects,
         rmse_before=rmse_before,
         rmse_after=rmse_after,
         noise_sigma=sigma_hat,
@@ -520,16 +599,12 @@ def diagnose(
         before=before_a,
         after=after_a,
         candidates=candidate_table(steps),
-        seconds=time.perf_counter() - t_start,
+        seconds=seconds,
         notes=notes,
         noise_test=noise_test,
         unexplained=unexplained,
         _recs=dsub,
-        _pred_before=[pred0[i] for i in diag],
+        _pred_before=[base.pred[i] for i in diag],
         _pred_after=[pred_after[i] for i in diag],
         _res_after=[res_after[i] for i in diag],
     )
-    if progress:
-        progress(f"verdict: {report.verdict} ({report.seconds:.1f} s)")
-    bar.close()
-    return report

@@ -166,11 +166,11 @@ def _initial_history(model: PreisachModel, u: Array, y: Array) -> History:
     The candidates are the histories of :func:`state_options`.  The one whose simulation by
     the given model fits the recording best (least squares over all its samples) is taken,
     and every sample is scored, so a ring after the first step counts as evidence.  A history
-    from beyond the recording's own range (a saturation, the anhysteretic state) must fit
-    clearly better than every history within it - by more than the BIC charge of two
-    parameters, ``n ln(SSE_within / SSE_beyond) > 2 ln n`` - because it leaves the relays the
-    input never reaches in a different state: a free output offset per recording, which a
-    refit with an input lag or a feedback turns into per-recording offsets of its weights.
+    from a saturation must fit clearly better than every history within the recording's own
+    range and the anhysteretic state - by more than the BIC charge of two parameters,
+    ``n ln(SSE_within / SSE_saturation) > 2 ln n`` - because it leaves the relays the input
+    never reaches in a different state: a free output offset per recording, which a refit
+    with an input lag or a feedback turns into per-recording offsets of its weights.
     The choice among histories of the chosen kind is made again for every chain of effects
     fitted during the diagnosis (:meth:`Context.choose_states`).
     """
