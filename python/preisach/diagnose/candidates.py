@@ -832,7 +832,7 @@ CANDIDATES: dict[str, type[Candidate]] = {
         DelayCandidate,
         OutputLagCandidate,
         DriftCandidate,
-        SplineFeedbackCandidate,
+        NonCongruenceCandidate,
         GainOffsetCandidate,
         SensorNonlinearityCandidate,
     )
