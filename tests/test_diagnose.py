@@ -60,6 +60,7 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
         "noise_sigma",
         "noise_test",
         "unexplained",
+        "base_grid",
     }
     assert set(d["noise_test"]) == {"ratio", "threshold", "consistent"}
     assert d["verdict"] == "delay"
@@ -535,3 +536,90 @@ def test_a_mode_that_does_not_ring_is_not_a_resonance():
     assert mode.implausible(np.array([49.0, 0.05, 1.0]), ctx) is None
     assert "bound" in DelayCandidate().implausible(np.array([0.05]), ctx)
     assert DelayCandidate().implausible(np.array([0.003]), ctx) is None
+
+
+def _session_recs():
+    """Two recordings of one session: the second starts where the first left the relays.
+
+    The first goes up to 90 V (beyond the second's range), the second stays within
+    -60..40 V, so for its whole length it keeps what the first left above 40 V.
+    """
+    m = PreisachModel.builtin("ss15-1hz", levels=41)
+    rng = np.random.default_rng(7)
+    t = np.arange(3000) * 1e-3
+    u1 = np.interp(t, [0, 0.5, 1.5, 2.2, 3.0], [0.0, 90.0, -95.0, 60.0, 0.0])
+    u2 = -10.0 + 50.0 * np.sin(2 * np.pi * 1.3 * t) * np.exp(-0.2 * t)
+    first = m.simulate(u1, m.anhysteretic_state())
+    left = m.simulate(np.array([u2[0]]), first.final_state).final_state
+    second = m.simulate(u2, left)
+    recs = [
+        Recording.from_arrays(t=t, u=u, y=y + rng.normal(0, 1e-3, t.size), experiment=name)
+        for name, u, y in (("a", u1, first.output), ("b", u2, second.output))
+    ]
+    return m, recs
+
+
+def test_session_history_is_the_state_the_previous_recording_left():
+    """The second recording of a session starts from what the first left: no free offset."""
+    m, recs = _session_recs()
+    a, b = prepare_recordings(m, recs)
+    assert b.session is not None and b.start == "unknown: left by 'a'"
+    sim = m.simulate(b.u, b.state0).output
+    assert np.sqrt(np.mean((b.y - sim) ** 2)) < 1.5e-3  # the noise: the state is right
+    # alone (no earlier recording) no history of the choice gives that state
+    (alone,) = prepare_recordings(m, recs[1:])
+    assert alone.session is None and "left by" not in alone.start
+    sim = m.simulate(alone.u, alone.state0).output
+    assert np.sqrt(np.mean((alone.y - sim) ** 2)) > 5e-3
+    # another history still wins when it fits better: after a recording that left the
+    # anhysteretic state, "left by" is the wrong state for the second recording
+    t = recs[0].t
+    y0 = m.simulate(np.zeros_like(t), m.anhysteretic_state()).output
+    quiet = Recording.from_arrays(t=t, u=np.zeros_like(t), y=y0, experiment="quiet")
+    _, b2 = prepare_recordings(m, [quiet, recs[1]])
+    assert "left by" not in b2.start, b2.start
+
+
+def test_refit_base_is_chosen_when_the_model_grid_fails():
+    """A 21-level refit that leaves far more than the noise is replaced, and said so.
+
+    A device with a fine Preisach density (161 levels) identified by a 21-level model; the
+    least-squares refit of the 21 levels with the default ridge predicts held-out blocks at
+    ~20 x the noise (weakly constrained weights); the firmer base is chosen, the verdict is
+    ``none`` (no physical effect) and the JSON says which base was used and why.
+    """
+    dev = PreisachModel.builtin("ss15-1hz", levels=161)
+    m = PreisachModel.builtin("ss15-1hz", levels=21)
+    rng = np.random.default_rng(0)
+    lo, hi = m.u_min, m.u_max
+
+    def rec(u, name):
+        t = np.arange(u.size) * 1e-3
+        y = dev.simulate(u, dev.negative_saturation()).output + rng.normal(0, 1e-3, u.size)
+        return Recording.from_arrays(t=t, u=u, y=y, experiment=name)
+
+    pts = [lo]
+    for a in np.linspace(1, 0.1, 10):
+        pts += [lo + a * (hi - lo), lo]
+    ident = rec(
+        np.concatenate([np.linspace(pts[k], pts[k + 1], 300) for k in range(len(pts) - 1)]), "id"
+    )
+    t = np.arange(4000) * 1e-3
+    exps = [
+        rec(
+            lo
+            + (hi - lo)
+            * 0.5
+            * (1 - np.cos(2 * np.pi * f * t))
+            * (0.35 + 0.3 * np.abs(np.sin(2 * np.pi * 0.23 * t + k))),
+            f"e{k}",
+        )
+        for k, f in enumerate((1.3, 2.1))
+    ]
+    rep = diagnose(m, exps, identification=[ident], candidates=["gain_offset"], progress=False)
+    g = rep.base_grid
+    assert g is not None and g["changed"] and g["p_value"] < 0.01, g
+    assert g["ratio"]["model grid"] > 5 and rep.noise_test["ratio"] < 2, g
+    assert rep.verdict == "none" and rep.unexplained is None
+    assert g["statement"] in rep.notes
+    assert json.loads(rep.to_json())["base_grid"]["levels"] == g["levels"]

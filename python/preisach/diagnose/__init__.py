@@ -26,9 +26,7 @@ from .core import diagnose
 from .effects import (
     EFFECT_TYPES,
     EffectBlock,
-    FeedbackBlock,
     FirstOrderInputLag,
-    FirstOrderOutputLag,
     FractionalDelay,
     GainOffset,
     LevelDependentGain,
@@ -38,7 +36,6 @@ from .effects import (
     RateDependentWidth,
     SecondOrderMode,
     SensorDrift,
-    SplineFeedback,
 )
 from .locate import ResidualAnalysis, analyse_residuals
 from .report import DiagnosisReport, EffectReport
@@ -47,14 +44,12 @@ __all__ = [
     "AugmentedModel",
     "EFFECT_TYPES",
     "EffectBlock",
-    "FeedbackBlock",
     "CANDIDATES",
     "EFFECTS",
     "Candidate",
     "PronyCreep",
     "DiagnosisReport",
     "FirstOrderInputLag",
-    "FirstOrderOutputLag",
     "EffectReport",
     "FractionalDelay",
     "GainOffset",
@@ -64,7 +59,6 @@ __all__ = [
     "RateDependentWidth",
     "ResidualAnalysis",
     "SensorDrift",
-    "SplineFeedback",
     "SecondOrderMode",
     "analyse_residuals",
     "diagnose",

@@ -112,6 +112,8 @@ class Context:
         refit: bool = False,
         refit_levels: int = 21,
         alternations: int = 2,
+        levels: Array | None = None,
+        ridge: float = 1e-7,
     ) -> None:
         self.model = model
         self.recs = recs
@@ -152,9 +154,14 @@ class Context:
         self.refit = bool(refit)
         if self.refit:
             lv = model.levels
-            if lv.size > 41:
+            if levels is not None:  # a grid chosen by the diagnosis (see choose_grid)
+                lv = np.asarray(levels, float)
+            elif lv.size > 41:
                 lv = np.linspace(model.u_min, model.u_max, int(refit_levels))
             self.levels = lv
+            #: ridge of the refit toward the given model's weights, relative to the mean
+            #: diagonal of the normal matrix
+            self.ridge = float(ridge)
             n = lv.size
             self.n_theta = n * (n - 1) // 2 + 1
             a, b = np.meshgrid(lv, lv, indexing="ij")
@@ -266,7 +273,7 @@ class Context:
             Ni, proj = self._normal(i, R, train[i], drift, cacheable)
             N += Ni
             projs[i] = proj
-        lam = 1e-7 * max(float(np.trace(N)) / p, 1e-300)
+        lam = self.ridge * max(float(np.trace(N)) / p, 1e-300)
         N[np.diag_indices(p)] += lam
         return (linalg.cho_factor(N), lam), projs
 
@@ -364,7 +371,9 @@ class Context:
         kind (:class:`~preisach.diagnose.data.History`: within the recording's own range, or
         from a saturation, or anhysteretic) that fits it best over the usable samples (with a
         drift projected off when ``drift``).  Like the first choice, this uses each
-        recording's measured output: one discrete choice per recording.  The kind stays: it
+        recording's measured output: one discrete choice per recording.  The state the
+        previous recording left (:func:`~preisach.diagnose.data.session_history`) counts as
+        of the kind within the range (neither has a free offset).  The kind stays: it
         sets the relays the input never reaches, i.e. an output offset per recording, which
         chosen with held-out samples would take a sensor drift's place.
 
@@ -409,7 +418,15 @@ class Context:
         cur = self.history(i, base)
         assert cur is not None
         lo, hi = float(ue.min()), float(ue.max())
-        hists = [cur, *state_options(self.model, ue, cur.kind)]
+        # the state the previous recording left has no free parameter: it competes with the
+        # histories within the recording's own range (one kind of uncharged history), and
+        # with those of a charged kind too (it replaces their free offset by none)
+        first = r.history
+        assert first is not None
+        within = first.kind in ("range", "session")
+        hists = [cur, *state_options(self.model, ue, "range" if within else first.kind)]
+        if r.session is not None and r.session is not cur:
+            hists.append(r.session)
         states = [h.state(ue) for h in hists]
         P_ref = _core.simulate(table, ue, states[0], "clamp")[0]
         kw = 1 + max(int(np.argmax(ue >= hi)), int(np.argmax(ue <= lo)))
@@ -808,8 +825,7 @@ class Context:
             xp[k], xm[k] = hi, lo
             J[:, k] = (prob.residuals(xp) - prob.residuals(xm)) / max(hi - lo, 1e-300)
         bread = np.linalg.pinv(J.T @ J)
-        n = prob.blocks.size  # data rows; a candidate's penalty rows follow them
-        g = J[:n] * r0[:n, None]
+        g = J * r0[:, None]
         _, inv = np.unique(prob.blocks, return_inverse=True)
         S = np.zeros((int(inv.max()) + 1 if inv.size else 0, x.size))
         np.add.at(S, inv, g)

@@ -24,7 +24,7 @@ from .effects import EffectBlock
 from .locate import analyse_residuals
 from .report import DiagnosisReport, EffectReport, candidate_table, unexplained_of, where_of
 from .scoring import sign_flip_p
-from .selection import Selection, run_selection
+from .selection import GridChoice, Selection, choose_grid, run_selection
 
 __all__ = ["diagnose", "separating_experiment"]
 
@@ -277,7 +277,24 @@ def diagnose(
             f"{len(ctx.diag)} recordings ({len(recs) - len(ctx.diag)} for identification), "
             f"{sum(r.n for r in recs)} samples; noise {1e3 * base.sigma:.3g} mV"
         )
-    # 3. greedy forward selection on held-out data
+    # 3. the refitted base: the model's grid, or a finer or firmer one when it fails
+    grid: dict[str, Any] | None = None
+    gc: GridChoice | None = None
+    if do_refit:
+        gc = choose_grid(
+            ctx,
+            lambda lv, ridge: Context(
+                model, recs, max_delay=max_delay, refit=True, levels=lv, ridge=ridge
+            ),
+            sigma=base.sigma,
+            noise_ratio=noise_ratio,
+            alpha=alpha,
+            min_gain=min_gain,
+            cv=cv,
+            progress=progress,
+        )
+        ctx, grid = gc.ctx, gc.report
+    # 4. greedy forward selection on held-out data
     sel = run_selection(
         ctx,
         cands,
@@ -288,12 +305,13 @@ def diagnose(
         alpha=alpha,
         max_effects=int(max_effects),
         progress=progress,
+        base=gc,
     )
-    # 4. the kept effects refitted on all usable samples
+    # 5. the kept effects refitted on all usable samples
     final = _final_fits(ctx, cands, sel, do_refit)
-    # 5. the augmented model and the report
+    # 6. the augmented model and the report
     report = _report(
-        model, ctx, sel, base, final, do_refit, noise_ratio, time.perf_counter() - t_start
+        model, ctx, sel, base, final, do_refit, noise_ratio, time.perf_counter() - t_start, grid
     )
     if progress:
         progress(f"verdict: {report.verdict} ({report.seconds:.1f} s)")
@@ -516,8 +534,12 @@ def _report(
     do_refit: bool,
     noise_ratio: float,
     seconds: float,
+    grid: dict[str, Any] | None = None,
 ) -> DiagnosisReport:
-    """Build the augmented model, the residual analyses, the noise test and the report."""
+    """Build the augmented model, the residual analyses, the noise test and the report.
+
+    ``grid`` is the base choice of :func:`~preisach.diagnose.selection.choose_grid`.
+    """
     recs, diag, steps, kept = ctx.recs, ctx.diag, sel.steps, sel.kept
     names, chain = final.names, final.chain
     base_model = model
@@ -584,6 +606,8 @@ def _report(
         f"{a['effect']} or {a['rival']}: equal within the noise; {a['experiment']}"
         for a in final.ambiguous
     ]
+    if grid is not None and grid["changed"]:
+        notes.append(grid["statement"])
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "
@@ -603,6 +627,7 @@ def _report(
         notes=notes,
         noise_test=noise_test,
         unexplained=unexplained,
+        base_grid=grid,
         _recs=dsub,
         _pred_before=[base.pred[i] for i in diag],
         _pred_after=[pred_after[i] for i in diag],

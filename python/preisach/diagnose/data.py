@@ -12,7 +12,14 @@ from numpy.typing import NDArray
 from ..model import PreisachModel, State
 from ..recording import Recording
 
-__all__ = ["History", "Rec", "noise_sigma", "prepare_recordings", "state_options"]
+__all__ = [
+    "History",
+    "Rec",
+    "noise_sigma",
+    "prepare_recordings",
+    "session_history",
+    "state_options",
+]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -30,6 +37,11 @@ class History:
     input.  :meth:`state` builds the state from the input the relays actually see, so an input
     block that changes that input (a lag started mid-sweep lowers its first value and its
     extremes) keeps the history and moves its ends with it.
+
+    ``"session"``: the state the previous recording of the same session left (``left``: its
+    relays' state at its end, turning points in absolute volts), then a move to this
+    recording's first input - the recordings of one lab session made one after another, as
+    given.  It has no free parameter (see :func:`session_history`).
     """
 
     label: str
@@ -37,12 +49,15 @@ class History:
     kind: str = "range"
     turns: tuple[float, ...] = ()
     anhysteretic: State | None = None
+    left: State | None = None
 
     def state(self, x: Array) -> State:
         """Return the relays' state after this history, for the relay input ``x`` (V) after it."""
         first = float(x[0])
         if self.kind == "anhysteretic" and self.anhysteretic is not None:
             return self.anhysteretic.apply([first])
+        if self.kind == "session" and self.left is not None:
+            return self.left.apply([float(np.clip(first, *self.u_range))])
         lo, hi = float(np.min(x)), float(np.max(x))
         pts = [lo + f * (hi - lo) for f in self.turns] + [first]
         if self.kind == "range":
@@ -74,6 +89,9 @@ class Rec:
     #: is its state at the first input), a nuisance re-chosen for every fitted chain (see
     #: :meth:`Context.choose_states`)
     history: History | None = None
+    #: when the initial state is unknown and a recording came before this one in the
+    #: session: the state it left (:func:`session_history`), one more option of the choice
+    session: History | None = None
 
     @property
     def n(self) -> int:
@@ -160,7 +178,24 @@ def state_options(model: PreisachModel, x: Array, kind: str | None = None) -> li
     return out
 
 
-def _initial_history(model: PreisachModel, u: Array, y: Array) -> History:
+def session_history(model: PreisachModel, prev: Rec) -> History:
+    """Return the history "left by the previous recording": ``prev`` run from its start.
+
+    Recordings of one lab session are made one after another, so a recording starts from
+    the state the previous one left (then the input moves to its first value).  A recording
+    that never reaches the range ends keeps, for its whole length, what an earlier one left
+    beyond its range - which no history within its own range can give, and the histories
+    from a saturation can give only at the BIC charge of a free offset.  This option has no
+    free parameter: the previous recording's input turning points in absolute volts, from
+    its initial state as chosen with the given model.
+    """
+    left = prev.state0.apply(prev.u.tolist())
+    return History(f"left by {prev.name!r}", (model.u_min, model.u_max), "session", left=left)
+
+
+def _initial_history(
+    model: PreisachModel, u: Array, y: Array, session: History | None = None
+) -> History:
     """Choose an unknown initial state: a nuisance parameter, not a reason to discard data.
 
     The candidates are the histories of :func:`state_options`.  The one whose simulation by
@@ -172,14 +207,17 @@ def _initial_history(model: PreisachModel, u: Array, y: Array) -> History:
     never reaches in a different state: a free output offset per recording, which a refit
     with an input lag or a feedback turns into per-recording offsets of its weights.
     The choice among histories of the chosen kind is made again for every chain of effects
-    fitted during the diagnosis (:meth:`Context.choose_states`).
+    fitted during the diagnosis (:meth:`Context.choose_states`).  ``session`` (the state the
+    previous recording left, :func:`session_history`) is one more option, uncharged like
+    those within the range: it has no free parameter.
     """
     from .. import _core
 
     best: dict[bool, tuple[float, History]] = {}
-    for h in state_options(model, u):
+    opts = state_options(model, u) + ([session] if session is not None else [])
+    for h in opts:
         sse = float(np.sum((y - _core.simulate(model.table, u, h.state(u), "clamp")[0]) ** 2))
-        within = h.kind in ("range", "anhysteretic")
+        within = h.kind in ("range", "anhysteretic", "session")
         if within not in best or sse < best[within][0]:
             best[within] = (sse, h)
     n = u.size
@@ -199,7 +237,11 @@ def prepare_recordings(
 ) -> list[Rec]:
     """Prepare the recordings: initial states, burn-in masks, time blocks and fold parities.
 
-    Identification recordings come last in the returned list, flagged ``ident``.
+    Identification recordings come last in the returned list, flagged ``ident``.  The
+    diagnosed recordings are taken as one lab session in the order given: one whose initial
+    state is unknown may start from the state the previous one left (:func:`session_history`).
+    The identification recordings do not count as earlier in that session: nothing says when
+    they were recorded (a model file may be days older than the experiments).
     """
     if not recordings:
         raise ValueError("recordings: need at least one recording to diagnose")
@@ -241,6 +283,7 @@ def prepare_recordings(
                 spec = "unknown"
         usable = np.ones(u.size, bool)
         history: History | None = None
+        session: History | None = None
         if isinstance(spec, State):
             s0, start = spec, "given"
         elif spec == "negative_saturation":
@@ -250,7 +293,9 @@ def prepare_recordings(
         elif spec == "anhysteretic":
             s0, start = model.anhysteretic_state(), spec
         elif spec == "unknown":
-            history = _initial_history(model, u, np.asarray(r.y, float))
+            prev = out[-1] if out and not ident else None
+            session = session_history(model, prev) if prev is not None else None
+            history = _initial_history(model, u, np.asarray(r.y, float), session)
             s0, start = history.state(u), f"unknown: {history.label}"
         elif spec == "burn_in":
             s0, start = model.anhysteretic_state(), spec
@@ -283,6 +328,7 @@ def prepare_recordings(
                 start,
                 ident,
                 history,
+                session,
             )
         )
     return out

@@ -175,7 +175,7 @@ class Problem:
             N += gram
             rhs += b
             self._last_u[i] = ue
-        lam = 1e-7 * max(float(np.trace(N)) / p, 1e-300)
+        lam = ctx.ridge * max(float(np.trace(N)) / p, 1e-300)
         N[np.diag_indices(p)] += lam
         rhs += lam * ctx.theta0
         # Cholesky without the condition estimate of linalg.solve (the ridge keeps N definite)
@@ -268,9 +268,6 @@ class Problem:
                 A, Ginv = pr
                 res = res - A @ (Ginv @ (A.T @ res))
             parts.append(res[::4] if coarse else res)
-        pen = self.cand.penalty(x, sum(p.size for p in parts))
-        if pen.size:  # a candidate's regularisation (e.g. a spline's curvature)
-            parts.append(pen)
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def sse(self, x: Array, coarse: bool = False) -> float:

@@ -103,6 +103,12 @@ class DiagnosisReport:
         When the final held-out residual is above ``threshold`` times the noise: ``ratio``,
         ``statement`` (the localisation in words), ``where`` (recordings, input range,
         direction, band) and ``follows`` (significant covariates); else None.
+    base_grid : dict or None
+        When the refitted base was tried on a finer grid (its held-out error at the model's
+        grid was above the noise bound): ``model_levels``, ``levels`` (the grid used),
+        ``heldout_rmse`` per grid tried (V), ``ratio`` (held-out RMSE over the noise, per
+        grid), ``p_value`` (sign-flip test of the finer grid over held-out blocks) and
+        ``statement``; else None.
 
     """
 
@@ -119,6 +125,7 @@ class DiagnosisReport:
     notes: list[str] = field(default_factory=list)
     noise_test: dict[str, Any] = field(default_factory=dict)
     unexplained: dict[str, Any] | None = None
+    base_grid: dict[str, Any] | None = None
     _recs: list[Any] = field(default_factory=list, repr=False)
     _pred_before: list[Array] = field(default_factory=list, repr=False)
     _pred_after: list[Array] = field(default_factory=list, repr=False)
@@ -135,6 +142,7 @@ class DiagnosisReport:
             "noise_sigma": self.noise_sigma,
             "noise_test": self.noise_test,
             "unexplained": self.unexplained,
+            "base_grid": self.base_grid,
         }
 
     def to_json(self, path: PathLike | None = None, *, indent: int = 2) -> str:

@@ -45,11 +45,18 @@ from __future__ import annotations
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
+
+import numpy as np
 
 from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, Fold
 from .scoring import Score, heldout_score, make_folds, sign_flip_p
+
+#: the finer grid a refitted base is tried on when the model's grid leaves too much
+FINE_LEVELS = 41
+#: the firmer ridge (relative to the mean diagonal of the normal matrix) those bases get
+FIRM_RIDGE = 1e-4
 
 __all__ = ["Selection", "StepResult", "run_selection"]
 
@@ -121,6 +128,103 @@ def _choose(
     return best
 
 
+@dataclass
+class GridChoice:
+    """Outcome of :func:`choose_grid`: the context to select on and its refitted base."""
+
+    ctx: Context
+    chains: list[Chain]
+    score: Score
+    report: dict[str, Any] | None
+
+
+def choose_grid(
+    ctx: Context,
+    make_context: Callable[[np.ndarray, float], Context],
+    *,
+    sigma: float,
+    noise_ratio: float,
+    alpha: float,
+    min_gain: float = 0.10,
+    cv: str = "auto",
+    progress: Callable[[str], None] | None = None,
+) -> GridChoice:
+    """Choose the refitted base: the model's grid, or a finer or firmer one when it fails.
+
+    A classical model on a coarse grid leaves its own discretisation error, which is no
+    missing physics, and so does a least-squares refit whose weights the data barely
+    constrain (noise amplified along weakly determined directions).  So when the refitted
+    base's held-out RMSE at the model's grid (``ctx``) is above ``noise_ratio`` times the
+    noise ``sigma``, two more bases are refitted (``make_context(levels, ridge)``, same
+    recordings and histories to choose from): the model's grid and a :data:`FINE_LEVELS`-level
+    grid over the same range, both with the ridge toward the given model's weights raised
+    from 1e-7 to :data:`FIRM_RIDGE` (relative to the mean diagonal of the normal matrix; the
+    finer grid has four times the weights, many weakly constrained by the sweep).  The one
+    with the lower held-out error is kept when it beats the model's grid as a candidate must:
+    a held-out RMSE lower by at least ``min_gain`` and the one-sided sign-flip test over
+    held-out blocks at ``alpha``.  The
+    candidates are then selected on the chosen base.  Paid for only when the model's grid
+    leaves the noise bound (the finer grid has 821 weights instead of 211).
+    """
+    scheme = "blocks" if cv == "auto" else cv
+    folds = make_folds(ctx.recs, scheme)
+    chains = [Chain(ctx.refit_base([], ctx.given, f.train, False)) for f in folds]
+    score = heldout_score(ctx, folds, chains, False)
+    n = int(ctx.levels.size)
+    if not sigma > 0 or score.rmse <= noise_ratio * sigma:
+        return GridChoice(ctx, chains, score, None)
+    tried: list[tuple[int, Context, list[Chain], Score]] = []
+    for levels in sorted({n, max(n, FINE_LEVELS)}):
+        alt = make_context(np.linspace(ctx.model.u_min, ctx.model.u_max, levels), FIRM_RIDGE)
+        ac = [Chain(alt.refit_base([], alt.given, f.train, False)) for f in folds]
+        tried.append((levels, alt, ac, heldout_score(alt, folds, ac, False)))
+    levels, alt, ac, ascore = min(tried, key=lambda x: x[3].rmse)
+    p = sign_flip_p(score.sse_blocks - ascore.sse_blocks, seed=0)
+    keep = bool(p < alpha and ascore.rmse <= (1.0 - min_gain) * score.rmse)
+    r0, r1 = score.rmse / sigma, ascore.rmse / sigma
+    if not keep:
+        statement = (
+            f"no classical refit predicts the held-out data significantly better than the "
+            f"model's {n}-level grid ({r0:.3g} x the noise; best tried: {levels} levels, "
+            f"{r1:.3g} x, sign-flip p = {p:.2g}; needed {100 * min_gain:.0f} % lower and "
+            f"p < {alpha:g}): the residual is not the grid's resolution"
+        )
+    elif levels > n:
+        statement = (
+            f"the model's {n}-level grid is too coarse for these recordings: a {levels}-level "
+            f"classical model predicts the held-out data at {r1:.3g} x the noise ({n} levels: "
+            f"{r0:.3g} x; sign-flip p = {p:.2g}); the candidates were fitted on it"
+        )
+    else:
+        statement = (
+            f"the least-squares refit of the model's {n}-level grid is ill-conditioned for these "
+            f"recordings: pulled toward the given model's weights (ridge {FIRM_RIDGE:g}) it "
+            f"predicts the held-out data at {r1:.3g} x the noise (ridge 1e-07: {r0:.3g} x; "
+            f"sign-flip p = {p:.2g}); the candidates were fitted with it"
+        )
+    if progress:
+        progress(f"  base grid: {statement}")
+    report = {
+        "model_levels": n,
+        "levels": levels if keep else n,
+        "ridge": FIRM_RIDGE if keep else ctx.ridge,
+        "heldout_rmse": {
+            "model grid": score.rmse,
+            **{f"{k} levels, ridge {FIRM_RIDGE:g}": s.rmse for k, _, _, s in tried},
+        },
+        "ratio": {
+            "model grid": r0,
+            **{f"{k} levels, ridge {FIRM_RIDGE:g}": s.rmse / sigma for k, _, _, s in tried},
+        },
+        "p_value": p,
+        "changed": keep,
+        "statement": statement,
+    }
+    if keep:
+        return GridChoice(alt, ac, ascore, report)
+    return GridChoice(ctx, chains, score, report)
+
+
 def run_selection(
     ctx: Context,
     candidates: Sequence[Candidate],
@@ -134,8 +238,13 @@ def run_selection(
     retry_gain: float = 0.02,
     tie_alpha: float = 0.05,
     progress: Callable[[str], None] | None = None,
+    base: GridChoice | None = None,
 ) -> Selection:
-    """Greedy forward selection (see the module docstring)."""
+    """Greedy forward selection (see the module docstring).
+
+    ``base`` (from :func:`choose_grid` on ``ctx``) gives the refitted base per fold already
+    computed.
+    """
     for c in candidates:
         c.prepare(ctx)
     scheme = "blocks" if cv == "auto" else cv
@@ -144,8 +253,11 @@ def run_selection(
     given = heldout_score(ctx, folds, given_chains, False)
     refit_score = None
     if ctx.refit:
-        chains = [Chain(ctx.refit_base([], ctx.given, f.train, False)) for f in folds]
-        refit_score = heldout_score(ctx, folds, chains, False)
+        if base is not None and base.ctx is ctx:
+            chains, refit_score = base.chains, base.score
+        else:
+            chains = [Chain(ctx.refit_base([], ctx.given, f.train, False)) for f in folds]
+            refit_score = heldout_score(ctx, folds, chains, False)
         if progress:
             progress(
                 "  base refitted on the training folds: held-out RMSE "
