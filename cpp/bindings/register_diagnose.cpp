@@ -47,4 +47,41 @@ void register_diagnose(py::module_& m) {
         py::arg("span"), py::arg("c") = 0.0,
         "Preisach model with output feedback: u_eff[k] = clamp(u[k] + a d + b d^2 / span + c d^3 / span^2), "
         "d = y[k-1] - y_c (volts); returns (y, u_eff, final_state).");
+
+    m.def(
+        "simulate_feedback_spline",
+        [](const preisach::EverettTable& table, const InArray& u, const preisach::State& state, double y_lo,
+           double y_hi, const InArray& coefficients) {
+            std::size_t n = 0, nc = 0;
+            const double* pu = as_vector(u, "u", n);
+            const double* pc = as_vector(coefficients, "coefficients", nc);
+            const preisach::FeedbackSpline f(y_lo, y_hi, pc, nc);
+            py::array_t<double> y(static_cast<py::ssize_t>(n)), ue(static_cast<py::ssize_t>(n));
+            double* py_ = y.mutable_data();
+            double* pe = ue.mutable_data();
+            preisach::Simulator sim(table, state);
+            {
+                py::gil_scoped_release release;
+                preisach::simulate_feedback_spline(sim, pu, n, f, py_, pe);
+            }
+            return py::make_tuple(y, ue, sim.state());
+        },
+        py::arg("table"), py::arg("u"), py::arg("state"), py::arg("y_lo"), py::arg("y_hi"), py::arg("coefficients"),
+        "Preisach model with output feedback through a uniform cubic B-spline f on [y_lo, y_hi] (volts; "
+        "constant outside): u_eff[k] = clamp(u[k] + f(y[k-1])); returns (y, u_eff, final_state).");
+
+    m.def(
+        "feedback_spline",
+        [](const InArray& y, double y_lo, double y_hi, const InArray& coefficients) {
+            std::size_t n = 0, nc = 0;
+            const double* py_ = as_vector(y, "y", n);
+            const double* pc = as_vector(coefficients, "coefficients", nc);
+            const preisach::FeedbackSpline f(y_lo, y_hi, pc, nc);
+            py::array_t<double> out(static_cast<py::ssize_t>(n));
+            double* po = out.mutable_data();
+            for (std::size_t k = 0; k < n; ++k) po[k] = f(py_[k]);
+            return out;
+        },
+        py::arg("y"), py::arg("y_lo"), py::arg("y_hi"), py::arg("coefficients"),
+        "The uniform cubic B-spline f(y) of simulate_feedback_spline at the outputs y (volts).");
 }

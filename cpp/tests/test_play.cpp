@@ -117,3 +117,48 @@ TEST_CASE("moving model: zero feedback is the classical model, feedback equals a
     CHECK_THROWS_AS(preisach::simulate_moving(bad, u.data(), u.size(), a, b, yc, 0.0, y.data(), ue.data()),
                     std::invalid_argument);
 }
+
+TEST_CASE("feedback spline: reproduces straight lines, is constant outside its range, checks its arguments") {
+    const double lo = -1.0, hi = 3.0;
+    const std::size_t nc = 7;
+    const double h = (hi - lo) / static_cast<double>(nc - 3);
+    std::vector<double> c(nc);
+    for (std::size_t i = 0; i < nc; ++i) c[i] = 0.3 * (lo + (static_cast<double>(i) - 1.0) * h) - 0.2;
+    const preisach::FeedbackSpline f(lo, hi, c.data(), nc);
+    for (double y = lo; y <= hi; y += 0.137) CHECK(f(y) == doctest::Approx(0.3 * y - 0.2).epsilon(1e-12));
+    CHECK(f(hi) == doctest::Approx(0.3 * hi - 0.2));
+    CHECK(f(hi + 5.0) == f(hi));
+    CHECK(f(lo - 5.0) == f(lo));
+    CHECK_THROWS_AS(preisach::FeedbackSpline(1.0, 1.0, c.data(), nc), std::invalid_argument);
+    CHECK_THROWS_AS(preisach::FeedbackSpline(lo, hi, c.data(), 3), std::invalid_argument);
+}
+
+TEST_CASE("feedback spline model: a straight-line spline is the linear moving model") {
+    const auto lv = ptest::uniform_levels(15);
+    const auto table = ptest::analytic_table(lv);
+    std::mt19937 g(7);
+    const auto u = ptest::random_walk(g, 2000, 0.5, 0.05);
+    const auto s0 = preisach::State::negative_saturation(ptest::U_MIN, ptest::U_MAX);
+    const double a = 0.04, yc = 0.1;
+    // a range wide enough that the output never leaves it (the spline is clamped outside)
+    const double lo = -50.0, hi = 50.0;
+    const std::size_t nc = 6;
+    const double h = (hi - lo) / static_cast<double>(nc - 3);
+    std::vector<double> c(nc);
+    for (std::size_t i = 0; i < nc; ++i) c[i] = a * (lo + (static_cast<double>(i) - 1.0) * h - yc);
+    std::vector<double> y(u.size()), ue(u.size()), y2(u.size()), ue2(u.size());
+    preisach::Simulator sim(table, s0);
+    preisach::simulate_feedback_spline(sim, u.data(), u.size(), preisach::FeedbackSpline(lo, hi, c.data(), nc),
+                                       y.data(), ue.data());
+    preisach::Simulator ref(table, s0);
+    preisach::simulate_moving(ref, u.data(), u.size(), a, 0.0, yc, 1.0, y2.data(), ue2.data());
+    CHECK(ptest::max_abs_diff(ue, ue2) < 1e-12);
+    CHECK(ptest::max_abs_diff(y, y2) < 1e-9);
+    std::vector<double> bad(u);
+    bad[5] = std::numeric_limits<double>::quiet_NaN();
+    preisach::Simulator sim2(table, s0);
+    CHECK_THROWS_AS(preisach::simulate_feedback_spline(sim2, bad.data(), bad.size(),
+                                                       preisach::FeedbackSpline(lo, hi, c.data(), nc), y.data(),
+                                                       ue.data()),
+                    std::invalid_argument);
+}

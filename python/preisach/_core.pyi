@@ -252,6 +252,17 @@ def simulate_moving(
     span: float,
     c: float = 0.0,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], State]: ...
+def simulate_feedback_spline(
+    table: EverettTable,
+    u: ArrayLike,
+    state: State,
+    y_lo: float,
+    y_hi: float,
+    coefficients: ArrayLike,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], State]: ...
+def feedback_spline(
+    y: ArrayLike, y_lo: float, y_hi: float, coefficients: ArrayLike
+) -> NDArray[np.float64]: ...
 
 # --- blocks/ (register_blocks.cpp) ---
 class Block:

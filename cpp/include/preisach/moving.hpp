@@ -14,6 +14,7 @@
 #include <cstddef>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "simulator.hpp"
 
@@ -34,6 +35,60 @@ inline void simulate_moving(Simulator& sim, const double* u, std::size_t n, doub
         if (!std::isfinite(u[k])) throw std::invalid_argument("input u[" + std::to_string(k) + "] is not finite");
         const double d = prev - y_c, q = d / span;
         double ue = u[k] + d * (a + q * (b + c * q));
+        ue = ue < lo ? lo : (ue > hi ? hi : ue);
+        u_eff[k] = ue;
+        prev = sim.step_checked(ue, InputPolicy::clamp, k);
+        y[k] = prev;
+    }
+}
+
+// A uniform cubic B-spline f(y) on [y_lo, y_hi] with n_coef >= 4 coefficients c[0..n_coef)
+// (n_coef - 3 equal intervals; outside the range y is clamped to it, so f is constant there).
+class FeedbackSpline {
+public:
+    FeedbackSpline(double y_lo, double y_hi, const double* coef, std::size_t n_coef)
+        : lo_(y_lo), hi_(y_hi), c_(coef, coef + n_coef) {
+        if (!std::isfinite(y_lo) || !std::isfinite(y_hi) || !(y_hi > y_lo))
+            throw std::invalid_argument("feedback spline: y_hi must be a finite number of volts above y_lo");
+        if (n_coef < 4)
+            throw std::invalid_argument("feedback spline: at least 4 coefficients are needed, got " +
+                                        std::to_string(n_coef));
+        for (double v : c_)
+            if (!std::isfinite(v)) throw std::invalid_argument("feedback spline: coefficients must be finite");
+        intervals_ = n_coef - 3;
+        h_ = (hi_ - lo_) / static_cast<double>(intervals_);
+    }
+
+    // f(y) (volts of input shift).
+    double operator()(double y) const {
+        const double yc = y < lo_ ? lo_ : (y > hi_ ? hi_ : y);
+        double s = (yc - lo_) / h_;
+        std::size_t j = static_cast<std::size_t>(s);
+        if (j >= intervals_) j = intervals_ - 1;
+        const double t = s - static_cast<double>(j), t2 = t * t, t3 = t2 * t, m = 1.0 - t;
+        return (m * m * m * c_[j] + (3.0 * t3 - 6.0 * t2 + 4.0) * c_[j + 1] +
+                (-3.0 * t3 + 3.0 * t2 + 3.0 * t + 1.0) * c_[j + 2] + t3 * c_[j + 3]) /
+               6.0;
+    }
+
+private:
+    double lo_, hi_, h_ = 1.0;
+    std::vector<double> c_;
+    std::size_t intervals_ = 1;
+};
+
+// A moving Preisach model whose feedback is a smooth function of the output:
+//     u_eff[k] = clamp(u[k] + f(y[k-1]), u_min, u_max)
+// with f a FeedbackSpline (y[k-1]: the previous output; the initial state's output before the
+// first sample).  Writes y[0..n) and u_eff[0..n) (volts); throws std::invalid_argument for a
+// non-finite input (naming the sample).
+inline void simulate_feedback_spline(Simulator& sim, const double* u, std::size_t n, const FeedbackSpline& f,
+                                     double* y, double* u_eff) {
+    const double lo = sim.state().u_min(), hi = sim.state().u_max();
+    double prev = sim.output();
+    for (std::size_t k = 0; k < n; ++k) {
+        if (!std::isfinite(u[k])) throw std::invalid_argument("input u[" + std::to_string(k) + "] is not finite");
+        double ue = u[k] + f(prev);
         ue = ue < lo ? lo : (ue > hi ? hi : ue);
         u_eff[k] = ue;
         prev = sim.step_checked(ue, InputPolicy::clamp, k);

@@ -26,7 +26,9 @@ from .core import diagnose
 from .effects import (
     EFFECT_TYPES,
     EffectBlock,
+    FeedbackBlock,
     FirstOrderInputLag,
+    FirstOrderOutputLag,
     FractionalDelay,
     GainOffset,
     LevelDependentGain,
@@ -36,6 +38,7 @@ from .effects import (
     RateDependentWidth,
     SecondOrderMode,
     SensorDrift,
+    SplineFeedback,
 )
 from .locate import ResidualAnalysis, analyse_residuals
 from .report import DiagnosisReport, EffectReport
@@ -44,12 +47,14 @@ __all__ = [
     "AugmentedModel",
     "EFFECT_TYPES",
     "EffectBlock",
+    "FeedbackBlock",
     "CANDIDATES",
     "EFFECTS",
     "Candidate",
     "PronyCreep",
     "DiagnosisReport",
     "FirstOrderInputLag",
+    "FirstOrderOutputLag",
     "EffectReport",
     "FractionalDelay",
     "GainOffset",
@@ -59,6 +64,7 @@ __all__ = [
     "RateDependentWidth",
     "ResidualAnalysis",
     "SensorDrift",
+    "SplineFeedback",
     "SecondOrderMode",
     "analyse_residuals",
     "diagnose",

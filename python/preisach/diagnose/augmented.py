@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from .. import _core
 from .._io import atomic_write, npz_load_error
 from ..model import PreisachModel, SimulationResult, State
-from .effects import EffectBlock, OutputFeedback, RateDependentWidth, effect_from_dict
+from .effects import EffectBlock, FeedbackBlock, RateDependentWidth, effect_from_dict
 
 __all__ = ["AugmentedModel", "load_model"]
 
@@ -71,9 +71,9 @@ class AugmentedModel:
         return [b for b in self.blocks if b.side == "input"]
 
     @property
-    def feedback_blocks(self) -> list[OutputFeedback]:
+    def feedback_blocks(self) -> list[FeedbackBlock]:
         """Output-feedback blocks: they change how the Preisach operator runs (one is used)."""
-        return [b for b in self.blocks if isinstance(b, OutputFeedback)]
+        return [b for b in self.blocks if isinstance(b, FeedbackBlock)]
 
     @property
     def output_blocks(self) -> list[EffectBlock]:

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from .effects import (
     EffectBlock,
     FirstOrderInputLag,
+    FirstOrderOutputLag,
     FractionalDelay,
     GainOffset,
     LevelDependentGain,
@@ -40,7 +41,9 @@ from .effects import (
     RateDependentWidth,
     SecondOrderMode,
     SensorDrift,
+    SplineFeedback,
 )
+from .linear_block import Classification, classify_problem
 
 if TYPE_CHECKING:  # pragma: no cover
     from .context import Context, Stage
@@ -155,6 +158,14 @@ class Candidate:
         """One line a user can act on."""
         raise NotImplementedError
 
+    def penalty(self, x: Array, n_rows: int) -> Array:
+        """Regularisation rows appended to the training residuals (V; none by default).
+
+        ``n_rows`` is the number of residuals they join, so a penalty can weigh as much as a
+        fixed share of the data whatever the number of samples.
+        """
+        return np.zeros(0)
+
     def implausible(self, x: Array, ctx: Context) -> str | None:
         """Why the fitted ``x`` does not fit this effect's name (None when it does).
 
@@ -179,11 +190,61 @@ def _sd(cov: Array | None, i: int) -> float:
 
 
 # ----------------------------------------------------------------------------------------
-class DelayCandidate(Candidate):
-    """Transport delay or measurement lag of the output."""
+class LinearDynamicsForm(Candidate):
+    """A narrow form of the linear dynamics between the hysteresis and the sensor.
+
+    The name does not come from this form's own fit: on the same training samples one general
+    low-order linear block is fitted and its response classified
+    (:mod:`preisach.diagnose.linear_block`); this form refines the parameters only when the
+    class is one of :attr:`CLASSES`, and is refused as implausible for its name otherwise
+    (in any fold of the step).  The general block is fitted when the engine asks the form for
+    its starting values (once per fold and step, shared by the forms through a cache).
+    """
+
+    #: Classes of the general block this form may be named for.
+    CLASSES: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._classes: list[Classification] = []
+        self._step: Any = None
+
+    def classification(self, ctx: Context) -> Classification | None:
+        """Fit and classify the general block on the current problem; remember the class."""
+        prob = ctx._problem
+        if prob is None:  # pragma: no cover - only called inside a fit
+            return None
+        cls = classify_problem(ctx, prob)
+        step = (tuple(e.cand.key for e in prob.fixed.effects), prob.drift)
+        if step != self._step:  # a new selection step (or the final fit): new folds
+            self._step, self._classes = step, []
+        self._classes.append(cls)
+        return cls
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        for cls in self._classes:
+            if cls.kind not in self.CLASSES:
+                return (
+                    "the general linear block fitted to the same training samples is not "
+                    f"{self.FORM}: {cls.reason}"
+                )
+        return None
+
+    #: What this form is, in words (for the refusal).
+    FORM: ClassVar[str] = ""
+
+    def general_block(self) -> str:
+        """Return the last classification in words (for the statement)."""
+        return f" (general linear block: {self._classes[-1].reason})" if self._classes else ""
+
+
+class DelayCandidate(LinearDynamicsForm):
+    """Transport delay or measurement lag of the output: a flat group delay."""
 
     name = "delay"
     order = 4
+    CLASSES = ("delay", "short")
+    FORM = "a pure delay (flat group delay, no peak)"
     physics = (
         "the measured output lags the model (transport delay, ADC pipeline or measurement filter)"
     )
@@ -193,7 +254,10 @@ class DelayCandidate(Candidate):
         return [ParamSpec("tau", "s", 0.0, ctx.max_delay, 1e-3)]
 
     def starts(self, ctx: Context) -> list[Array]:
+        cls = self.classification(ctx)
         grid = np.concatenate([[0.25, 0.5], np.arange(1, 11), [15, 20, 30, 50]]) * ctx.dt_min
+        if cls is not None and 0 < cls.tau0 < ctx.max_delay:
+            grid = np.append(grid, cls.tau0)
         grid = grid[grid <= ctx.max_delay]
         return ctx.grid_search(self, [np.array([g]) for g in grid], top=1)
 
@@ -203,14 +267,58 @@ class DelayCandidate(Candidate):
     def implausible(self, x: Array, ctx: Context) -> str | None:
         if x[0] >= 0.98 * ctx.max_delay:
             return f"delay at its bound ({1e3 * x[0]:.3g} ms): a slower effect, not a delay"
-        return None
+        return super().implausible(x, ctx)
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         ms, e = 1e3 * x[0], 1e3 * _sd(cov, 0)
         return (
             f"the measurement lags the input by {_pm(ms, e, '.3g')} ms "
             f"({ms / (1e3 * ctx.dt_min):.2g} samples): a transport delay or measurement filter; "
-            "shift the recorded output by this much or keep the delay block"
+            f"shift the recorded output by this much or keep the delay block{self.general_block()}"
+        )
+
+
+class OutputLagCandidate(LinearDynamicsForm):
+    """A first-order measurement filter after the hysteresis: group delay falling with frequency."""
+
+    name = "delay"
+    variant = "first_order_lag"
+    order = 4
+    physics = (
+        "the reading follows the actuator through a first-order filter (sensor or amplifier "
+        "bandwidth)"
+    )
+    block_type = FirstOrderOutputLag
+    CLASSES = ("lag", "short")
+    FORM = "a first-order lag (group delay falling with frequency, no peak)"
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        return [ParamSpec("tau", "s", 0.0, ctx.max_delay, 1e-3)]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        cls = self.classification(ctx)
+        grid = np.array([0.25, 0.5, 1, 2, 4, 8, 16, 32]) * ctx.dt_min
+        if cls is not None and 0 < cls.tau0 < ctx.max_delay:
+            grid = np.append(grid, cls.tau0)
+        return ctx.grid_search(self, [np.array([g]) for g in grid[grid <= ctx.max_delay]], top=1)
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"tau": max(float(x[0]), 0.0)}
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        if x[0] >= 0.98 * ctx.max_delay:
+            return (
+                f"lag at its bound ({1e3 * x[0]:.3g} ms): a slower effect, not a measurement filter"
+            )
+        return super().implausible(x, ctx)
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        ms, e = 1e3 * x[0], 1e3 * _sd(cov, 0)
+        return (
+            f"the reading follows the actuator through a first-order filter of time constant "
+            f"{_pm(ms, e, '.3g')} ms (bandwidth {1 / (2 * math.pi * max(x[0], 1e-12)):.3g} Hz; "
+            "a sensor or amplifier bandwidth, which lags slow signals by as much): widen the "
+            f"measurement bandwidth or keep the lag block{self.general_block()}"
         )
 
 
@@ -320,11 +428,13 @@ class RateWidthCandidate(Candidate):
         )
 
 
-class ModeCandidate(Candidate):
+class ModeCandidate(LinearDynamicsForm):
     """A lightly damped structural mode after the hysteresis."""
 
     name = "structural_resonance"
     order = 2
+    CLASSES = ("mode",)
+    FORM = "a lightly damped mode (resonant peak, damping ratio < 0.3)"
     physics = "a lightly damped structural mode between the hysteresis and the sensor"
     block_type = SecondOrderMode
 
@@ -337,6 +447,7 @@ class ModeCandidate(Candidate):
 
     def starts(self, ctx: Context) -> list[Array]:
         # scan f_n on a 4 % grid and a few dampings; the participation is linear: project on it
+        cls = self.classification(ctx)
         prob = ctx._problem
         fmax = 0.4 / ctx.dt_min
         # (at least two points: a FORC file's 0.2 s samples leave no band above 2 Hz)
@@ -357,7 +468,10 @@ class ModeCandidate(Candidate):
                 if c > 0:
                     found.append((gain, f, z, min(c, 5.0)))
         found.sort(reverse=True)
-        return [np.array([f, z, c]) for _, f, z, c in found[:2]] or [
+        extra = []
+        if cls is not None and cls.kind == "mode" and found:  # the general block's pole pair
+            extra = [np.array([cls.f_n, max(cls.zeta, 0.004), found[0][3]])]
+        return [np.array([f, z, c]) for _, f, z, c in found[:2]] + extra or [
             np.array([grid[len(grid) // 2], 0.05, 0.0])
         ]
 
@@ -375,14 +489,14 @@ class ModeCandidate(Candidate):
             )
         if x[0] >= 0.98 * 0.45 / ctx.dt_min or x[0] <= 1.02:
             return f"mode frequency {x[0]:.4g} Hz at its bound"
-        return None
+        return super().implausible(x, ctx)
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         return (
             f"a structural mode at {_pm(x[0], _sd(cov, 0))} Hz (damping ratio "
             f"{_pm(x[1], _sd(cov, 1), '.2g')}, seen with participation "
             f"{_pm(x[2], _sd(cov, 2), '.2g')}) rings after fast input changes; keep input content "
-            "well below it or keep the mode block"
+            f"well below it or keep the mode block{self.general_block()}"
         )
 
 
@@ -572,6 +686,109 @@ class NonCongruenceCandidate(Candidate):
         )
 
 
+class SplineFeedbackCandidate(Candidate):
+    """Minor loops that depend on the output level: feedback through a smooth function of it.
+
+    A moving Preisach model ``u_eff = u + f(y_prev)`` with ``f`` a regularised uniform cubic
+    B-spline over the output range (:data:`N_COEF` coefficients; the range is the model's
+    output range widened by :data:`MARGIN` on both sides), fitted with the Preisach weights
+    refitted, in series-parallel form (no held-out measurement enters the fit, see
+    :class:`~preisach.diagnose.problem.Problem`).  It generalises the cubic feedback
+    (:class:`NonCongruenceCandidate`: any cubic polynomial is such a spline) to a feedback of
+    any smooth shape - linear, saturating, one-sided.  The curvature is charged: the second
+    differences of the coefficients, converted to output volts by the model's mean slope
+    ``y_span / u_span``, join the residuals weighted as if :data:`SMOOTHING` of the samples
+    saw them.  Starting values: the linear gain scanned densely (the training error is rough
+    in it, see :class:`NonCongruenceCandidate`) with the feedback's zero at five levels, plus
+    two curved starts.
+    """
+
+    name = "non_congruence"
+    side = "feedback"
+    physics = "minor loops between the same inputs differ with the output level (not congruent)"
+    block_type = SplineFeedback
+    #: Number of B-spline coefficients (three equal intervals over the output range).
+    N_COEF: ClassVar[int] = 6
+    #: Share of the output span added below and above the model's output range.
+    MARGIN: ClassVar[float] = 0.05
+    #: Weight of the curvature penalty (share of the samples it counts as).
+    SMOOTHING: ClassVar[float] = 0.1
+
+    def prepare(self, ctx: Context) -> None:
+        lo, hi = sorted((ctx.y_lo, ctx.y_hi))
+        self.range = (lo, hi)
+        pad = self.MARGIN * max(hi - lo, 1e-12)
+        self.y_lo, self.y_hi = lo - pad, hi + pad
+        self.fixed = {"y_lo": self.y_lo, "y_hi": self.y_hi}
+        self.limit = ctx.u_span / max(ctx.y_span, 1e-12)
+        self.slope = ctx.y_span / max(ctx.u_span, 1e-12)
+        self.knots = SplineFeedback.greville(self.y_lo, self.y_hi, self.N_COEF)
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        bound = self.limit * (self.y_hi - self.y_lo)
+        return [ParamSpec(f"c{i}", "V", -bound, bound, 0.01 * bound) for i in range(self.N_COEF)]
+
+    def linear(self, a: float, y_c: float) -> Array:
+        """Coefficients of the linear feedback ``a (y - y_c)`` (V/V, V)."""
+        return np.asarray(a * (self.knots - y_c))
+
+    def starts(self, ctx: Context) -> list[Array]:
+        g = self.limit
+        lo, hi = self.y_lo, self.y_hi
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        best = [
+            ctx.grid_search(
+                self, [self.linear(a, lo + f * (hi - lo)) for a in np.linspace(-g, g, 161)]
+            )[0]
+            for f in (0.1, 0.3, 0.5, 0.7, 0.9)
+        ]
+        q = (self.knots - mid) / half
+        best += [s * f * g * half * q * q for s in (-1, 1) for f in (0.01, 0.05)]
+        return ctx.grid_search(self, best, top=3)
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"coefficients": [float(v) for v in x], **self.fixed}
+
+    def penalty(self, x: Array, n_rows: int) -> Array:
+        d2 = np.diff(np.asarray(x, float), 2)
+        return math.sqrt(self.SMOOTHING * max(n_rows, 1) / max(d2.size, 1)) * self.slope * d2
+
+    def feedback(self, x: Array, y: Array) -> Array:
+        """Input shift (V) for the outputs ``y`` (V)."""
+        return self.block(x, 1.0).run(np.asarray(y, float))
+
+    def slope_range(self, x: Array) -> tuple[float, float, float]:
+        """Secant slope over 10-90 % of the model's output range, and the local slopes' range."""
+        lo, hi = self.range
+        y = np.linspace(lo + 0.1 * (hi - lo), lo + 0.9 * (hi - lo), 81)
+        v = self.feedback(x, y)
+        local = np.diff(v) / np.diff(y)
+        return float((v[-1] - v[0]) / (y[-1] - y[0])), float(local.min()), float(local.max())
+
+    def report_params(self, x: Array, cov: Array | None, ctx: Context) -> dict[str, dict[str, Any]]:
+        out = super().report_params(x, cov, ctx)
+        sec, smin, smax = self.slope_range(x)
+        out["secant_slope"] = {"value": sec, "std": float("nan"), "unit": "V/V"}
+        out["slope_min"] = {"value": smin, "std": float("nan"), "unit": "V/V"}
+        out["slope_max"] = {"value": smax, "std": float("nan"), "unit": "V/V"}
+        return out
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        sec, smin, smax = self.slope_range(x)
+        shape = (
+            "about linear"
+            if smax - smin <= 0.25 * max(abs(sec), 1e-12)
+            else f"its local slope ranging {smin:.3g} to {smax:.3g} V/V"
+        )
+        return (
+            f"minor loops are not congruent: the output feeds back on the switching thresholds by "
+            f"{sec:.3g} V per V of output on average over the output range (moving Preisach "
+            f"model with a smooth feedback curve, {shape}), so loops between the same inputs "
+            "change with the output level; a classical Preisach model cannot describe this - "
+            "keep the feedback block"
+        )
+
+
 class DriftCandidate(Candidate):
     """Sensor offset drifting with time, unrelated to the input."""
 
@@ -613,6 +830,7 @@ CANDIDATES: dict[str, type[Candidate]] = {
         ModeCandidate,
         CreepCandidate,
         DelayCandidate,
+        OutputLagCandidate,
         DriftCandidate,
         NonCongruenceCandidate,
         GainOffsetCandidate,

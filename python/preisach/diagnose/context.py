@@ -825,7 +825,8 @@ class Context:
             xp[k], xm[k] = hi, lo
             J[:, k] = (prob.residuals(xp) - prob.residuals(xm)) / max(hi - lo, 1e-300)
         bread = np.linalg.pinv(J.T @ J)
-        g = J * r0[:, None]
+        n = prob.blocks.size  # data rows; a candidate's penalty rows follow them
+        g = J[:n] * r0[:n, None]
         _, inv = np.unique(prob.blocks, return_inverse=True)
         S = np.zeros((int(inv.max()) + 1 if inv.size else 0, x.size))
         np.add.at(S, inv, g)

@@ -39,10 +39,12 @@ diagnosis block             rig block                                      diffe
 :class:`OutputFeedback`     ``PreisachStage(moving_gain)``                 centred polynomial
                                                                            feedback here, linear
                                                                            there
+:class:`SplineFeedback`     ``PreisachStage(moving_gain)``                 spline feedback here,
+                                                                           linear there
 ==========================  =============================================  ====================
 
-:class:`RateDependentPlay`, :class:`RateDependentWidth`, :class:`LevelDependentGain` and
-:class:`GainOffset` have no rig counterpart.
+:class:`RateDependentPlay`, :class:`RateDependentWidth`, :class:`LevelDependentGain`,
+:class:`FirstOrderOutputLag` and :class:`GainOffset` have no rig counterpart.
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ __all__ = [
     "EffectBlock",
     "PronyCreep",
     "FirstOrderInputLag",
+    "FirstOrderOutputLag",
     "FractionalDelay",
     "GainOffset",
     "LevelDependentGain",
@@ -69,6 +72,8 @@ __all__ = [
     "RateDependentWidth",
     "SensorDrift",
     "SecondOrderMode",
+    "FeedbackBlock",
+    "SplineFeedback",
     "effect_from_dict",
 ]
 
@@ -451,6 +456,37 @@ class FractionalDelay(EffectBlock):
         return y
 
 
+class FirstOrderOutputLag(_LinearFilter):
+    """A first-order measurement filter between the actuator output and the reading (output side).
+
+    ``tau dy/dt = x - y`` for the input interpolated linearly between its samples (exact under
+    a first-order hold: the actuator's output is a continuous signal, not a staircase), so at
+    low frequency the reading lags by exactly ``tau``, whatever ``tau / dt``; a sensor or
+    amplifier with a first-order bandwidth.  Unlike a pure delay its group delay falls with
+    frequency (to half at ``1 / (2 pi tau)``).  Diagnosis names it under ``delay`` (the
+    measurement chain) in the form ``first_order_lag``.
+
+    Parameters
+    ----------
+    tau : float
+        Time constant (s), >= 0 (0 passes the input unchanged).
+
+    """
+
+    kind = "delay"
+    side = "output"
+    PARAMS = (("tau", "s"),)
+    DOMAIN = {"tau": ">=0"}
+
+    def _design(self) -> tuple[Array, Array, float]:
+        t = self._params["tau"]
+        if t <= 0:
+            return np.array([1.0]), np.array([1.0]), 1.0
+        pole = math.exp(-self.dt / t)
+        r = t / self.dt * (1.0 - pole)  # first-order-hold discretisation: b0 + b1 = 1 - pole
+        return np.array([1.0 - r, r - pole]), np.array([1.0, -pole]), 1.0
+
+
 class FirstOrderInputLag(EffectBlock):
     """Rate-dependent hysteresis from a lag before the hysteresis (input side).
 
@@ -639,7 +675,83 @@ class LevelDependentGain(EffectBlock):
         return x
 
 
-class OutputFeedback(EffectBlock):
+class FeedbackBlock(EffectBlock):
+    """Base class of the output-feedback blocks (a moving Preisach model; ``side = "feedback"``).
+
+    Such a block is not a filter on a signal: it changes how the Preisach operator is run, so
+    :class:`~preisach.diagnose.AugmentedModel` and diagnosis call :meth:`simulate`;
+    :meth:`run` is the feedback map from the previous output (V) to the input shift (V).
+    """
+
+    side = "feedback"
+
+    def reset(self, x0: float) -> float:
+        """Return the input shift (V) for the previous output ``x0`` (V); a static map."""
+        return self._static(x0)
+
+    def simulate(
+        self, table: Any, u: ArrayLike, state: Any
+    ) -> tuple[Array, Array, Any]:  # pragma: no cover - abstract
+        """Run the Preisach ``table`` with this feedback; returns ``(y, u_eff, final_state)``."""
+        raise NotImplementedError
+
+
+class SplineFeedback(FeedbackBlock):
+    """Non-congruent minor loops: the output feeds back on the relays' input through a spline.
+
+    The relays see ``u_eff = u + f(y_prev)`` with ``f`` a uniform cubic B-spline on
+    ``[y_lo, y_hi]`` (``len(coefficients) - 3`` equal intervals; ``f`` is constant outside,
+    at its end values): a moving Preisach model (Della Torre, ``H_eff = H + alpha M``) whose
+    feedback may be any smooth function of the output - linear (the classical moving model),
+    saturating, stronger at one end - rather than one functional form.  Minor loops between
+    the same two inputs then differ with the output level they sit at.  The closed loop runs
+    in C++ (``preisach._core.simulate_feedback_spline``).
+
+    Parameters
+    ----------
+    coefficients : sequence of float
+        B-spline coefficients (V of input shift), at least 4.  Coefficient ``i`` sits at the
+        output ``y_lo + (i - 1) h``, ``h = (y_hi - y_lo) / (len - 3)``; coefficients on a
+        straight line give a linear feedback.
+    y_lo, y_hi : float
+        The output range (V) the spline spans, ``y_hi > y_lo``.
+
+    """
+
+    kind = "non_congruence"
+    PARAMS = (("coefficients", "V"), ("y_lo", "V"), ("y_hi", "V"))
+
+    def _set(self, params: dict[str, Any]) -> None:
+        c = [_finite(self.kind, "coefficients", v) for v in np.atleast_1d(params["coefficients"])]
+        if len(c) < 4:
+            raise ValueError(f"{self.kind}: need at least 4 coefficients, got {len(c)}")
+        lo = _finite(self.kind, "y_lo", params["y_lo"])
+        hi = _finite(self.kind, "y_hi", params["y_hi"])
+        if not hi > lo:
+            raise ValueError(f"{self.kind}: y_hi ({hi!r}) must lie above y_lo ({lo!r})")
+        self._params = {"coefficients": c, "y_lo": lo, "y_hi": hi}
+        self._c = np.asarray(c, dtype=float)
+
+    @staticmethod
+    def greville(y_lo: float, y_hi: float, n: int) -> Array:
+        """Output levels (V) at which the ``n`` coefficients sit (straight lines are exact)."""
+        h = (y_hi - y_lo) / (n - 3)
+        return np.asarray(y_lo + (np.arange(n) - 1.0) * h)
+
+    def _run(self, x: Array) -> Array:
+        p = self._params
+        return np.asarray(_core.feedback_spline(x, p["y_lo"], p["y_hi"], self._c))
+
+    def simulate(self, table: Any, u: ArrayLike, state: Any) -> tuple[Array, Array, Any]:
+        """Run the Preisach ``table`` with this feedback; returns ``(y, u_eff, final_state)``."""
+        p = self._params
+        y, ue, fin = _core.simulate_feedback_spline(
+            table, np.ascontiguousarray(u, dtype=float), state, p["y_lo"], p["y_hi"], self._c
+        )
+        return np.asarray(y), np.asarray(ue), fin
+
+
+class OutputFeedback(FeedbackBlock):
     """Non-congruent minor loops: the output feeds back on the relays' input (Preisach stage).
 
     The relays see ``u_eff = u + a d + b d^2 / span + c d^3 / span^2``, ``d = y_prev - y_c``
@@ -786,11 +898,13 @@ EFFECT_TYPES: dict[str, type[EffectBlock]] = {
         PronyCreep,
         FractionalDelay,
         FirstOrderInputLag,
+        FirstOrderOutputLag,
         RateDependentPlay,
         RateDependentWidth,
         SensorDrift,
         LevelDependentGain,
         OutputFeedback,
+        SplineFeedback,
         GainOffset,
     )
 }

@@ -268,6 +268,9 @@ class Problem:
                 A, Ginv = pr
                 res = res - A @ (Ginv @ (A.T @ res))
             parts.append(res[::4] if coarse else res)
+        pen = self.cand.penalty(x, sum(p.size for p in parts))
+        if pen.size:  # a candidate's regularisation (e.g. a spline's curvature)
+            parts.append(pen)
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def sse(self, x: Array, coarse: bool = False) -> float:
