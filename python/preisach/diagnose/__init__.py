@@ -21,7 +21,7 @@ fitting), :mod:`~preisach.diagnose.problem` (one candidate's training problem),
 from __future__ import annotations
 
 from .augmented import AugmentedModel, load_model
-from .candidates import CANDIDATES, EFFECTS, Candidate
+from .candidates import Candidate
 from .core import diagnose
 from .effects import (
     EFFECT_TYPES,
@@ -41,6 +41,7 @@ from .effects import (
     SplineFeedback,
 )
 from .locate import ResidualAnalysis, analyse_residuals
+from .registry import CANDIDATES, EFFECTS
 from .report import DiagnosisReport, EffectReport
 
 __all__ = [

@@ -48,7 +48,7 @@ from .linear_block import Classification, classify_problem
 if TYPE_CHECKING:  # pragma: no cover
     from .context import Context, Stage
 
-__all__ = ["CANDIDATES", "EFFECTS", "Candidate", "ParamSpec", "default_candidates"]
+__all__ = ["Candidate", "ParamSpec"]
 
 Array = NDArray[np.float64]
 
@@ -815,33 +815,3 @@ class DriftCandidate(Candidate):
             f"{_pm(1e3 * x[0], 1e3 * _sd(cov, 0))} mV/s; re-zero the sensor before each run, "
             "control its temperature, or detrend the recordings"
         )
-
-
-from .rate_family import RateFamilyCandidate  # noqa: E402 (subclasses Candidate)
-
-#: The candidate classes by effect name.
-CANDIDATES: dict[str, type[Candidate]] = {
-    c().key: c
-    for c in (
-        RateLagCandidate,
-        RateCandidate,
-        RateWidthCandidate,
-        RateFamilyCandidate,
-        ModeCandidate,
-        CreepCandidate,
-        DelayCandidate,
-        OutputLagCandidate,
-        DriftCandidate,
-        NonCongruenceCandidate,
-        GainOffsetCandidate,
-        SensorNonlinearityCandidate,
-    )
-}
-
-#: Effect names (several candidates may test forms of the same effect).
-EFFECTS: tuple[str, ...] = tuple(dict.fromkeys(c.name for c in CANDIDATES.values()))
-
-
-def default_candidates() -> list[Candidate]:
-    """One instance of every candidate."""
-    return [c() for c in CANDIDATES.values()]

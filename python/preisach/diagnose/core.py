@@ -17,11 +17,12 @@ from .._progress import line_progress
 from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
-from .candidates import CANDIDATES, Candidate, DriftCandidate
+from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
 from .locate import analyse_residuals
+from .registry import CANDIDATES
 from .report import DiagnosisReport, EffectReport, candidate_table, unexplained_of, where_of
 from .scoring import sign_flip_p
 from .selection import GridChoice, Selection, choose_grid, run_selection

@@ -1,0 +1,54 @@
+"""The registry of diagnosis candidates: every explanation `diagnose` tests.
+
+The candidate classes live in :mod:`.candidates` (the classical forms and the general linear
+block) and :mod:`.rate_family` (the rate-dependent Everett family, which subclasses
+:class:`~.candidates.Candidate`); this module names them all, so neither imports the other's
+list.
+"""
+
+from __future__ import annotations
+
+from .candidates import (
+    Candidate,
+    CreepCandidate,
+    DelayCandidate,
+    DriftCandidate,
+    GainOffsetCandidate,
+    ModeCandidate,
+    NonCongruenceCandidate,
+    OutputLagCandidate,
+    RateCandidate,
+    RateLagCandidate,
+    RateWidthCandidate,
+    SensorNonlinearityCandidate,
+)
+from .rate_family import RateFamilyCandidate
+
+__all__ = ["CANDIDATES", "EFFECTS", "default_candidates"]
+
+#: The candidate classes by effect name.
+CANDIDATES: dict[str, type[Candidate]] = {
+    c().key: c
+    for c in (
+        RateLagCandidate,
+        RateCandidate,
+        RateWidthCandidate,
+        RateFamilyCandidate,
+        ModeCandidate,
+        CreepCandidate,
+        DelayCandidate,
+        OutputLagCandidate,
+        DriftCandidate,
+        NonCongruenceCandidate,
+        GainOffsetCandidate,
+        SensorNonlinearityCandidate,
+    )
+}
+
+#: Effect names (several candidates may test forms of the same effect).
+EFFECTS: tuple[str, ...] = tuple(dict.fromkeys(c.name for c in CANDIDATES.values()))
+
+
+def default_candidates() -> list[Candidate]:
+    """One instance of every candidate."""
+    return [c() for c in CANDIDATES.values()]
