@@ -135,7 +135,7 @@ class Candidate:
             if len(cache) > 256:
                 cache.clear()
             blk = cache[key] = self.block_type(dt, **self.params(x))
-        return blk
+        return cast("EffectBlock", blk)
 
     block_type: ClassVar[type[EffectBlock]] = EffectBlock
 

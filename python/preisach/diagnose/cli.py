@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from .._io import save_figure
 
@@ -138,4 +138,4 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
     )
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing")
     p.set_defaults(func=_run)
-    return p
+    return cast(argparse.ArgumentParser, p)

@@ -305,7 +305,7 @@ class Context:
                 tm = t[m]
                 t[m] = tm - A @ (Ginv @ (A.T @ tm))
             rhs = rhs + R.T @ t
-        return linalg.cho_solve(cho, rhs)
+        return np.asarray(linalg.cho_solve(cho, rhs), dtype=float)
 
     def linearised_targets(
         self,
@@ -580,7 +580,7 @@ class Context:
             b = e.cand.block(e.x, r.dt)
             b.reset(float(x[0]))
             x = b.run(x)
-        return np.clip(x[pre.size :], self.model.u_min, self.model.u_max)
+        return np.asarray(np.clip(x[pre.size :], self.model.u_min, self.model.u_max), dtype=float)
 
     def lead_in(self, i: int) -> Array:
         """Input (V) assumed before recording ``i``: steady motion at its initial rate.

@@ -273,7 +273,7 @@ class _LinearFilter(EffectBlock):
             h = signal.lfilter(self._b, self._a, x)
         else:
             h, self._zi = signal.lfilter(self._b, self._a, x, zi=self._zi)
-        return x + self._mix * (h - x)
+        return np.asarray(x + self._mix * (h - x), dtype=float)
 
 
 def _expm2(A: Array) -> Array:
@@ -293,7 +293,10 @@ def _expm2(A: Array) -> Array:
     else:
         ch = np.cosh(q)
         sh = np.sinh(q) / q
-    return (math.exp(s) * (complex(ch) * np.eye(2) + complex(sh) * (A - s * np.eye(2)))).real
+    return np.asarray(
+        (math.exp(s) * (complex(ch) * np.eye(2) + complex(sh) * (A - s * np.eye(2)))).real,
+        dtype=float,
+    )
 
 
 def _mode_zoh(wn: float, zeta: float, dt: float) -> tuple[Array, Array]:
@@ -401,7 +404,7 @@ class PronyCreep(EffectBlock):
         """Every lag settled at ``x0``; returns ``gain * x0``."""
         x0 = _finite(self.kind, "x0", x0)
         self._z = np.full(len(self._lags), x0)
-        return self._params["gain"] * x0
+        return float(self._params["gain"] * x0)
 
     def _run(self, x: Array) -> Array:
         p = self._params
@@ -412,7 +415,7 @@ class PronyCreep(EffectBlock):
                 self._z[k] = lag[-1]
             if c != 0.0:
                 y = y + c * (lag - x)
-        return y
+        return np.asarray(y, dtype=float)
 
 
 class FractionalDelay(EffectBlock):
@@ -453,7 +456,7 @@ class FractionalDelay(EffectBlock):
         idx = np.arange(x.size) + k0 - self._n
         y = (1 - self._frac) * full[idx] + self._frac * full[idx - 1]
         self._buf = full[-(self._n + 1) :]
-        return y
+        return np.asarray(y, dtype=float)
 
 
 class FirstOrderOutputLag(_LinearFilter):
@@ -613,12 +616,12 @@ class SensorDrift(EffectBlock):
     def reset(self, x0: float) -> float:
         """Time back to 0; returns ``x0 + offset``."""
         self._k = 0
-        return _finite(self.kind, "x0", x0) + self._params["offset"]
+        return float(_finite(self.kind, "x0", x0) + self._params["offset"])
 
     def _run(self, x: Array) -> Array:
         t = (self._k + 1 + np.arange(x.size)) * self.dt
         self._k += x.size
-        return x + self._params["offset"] + self._params["rate"] * t
+        return np.asarray(x + self._params["offset"] + self._params["rate"] * t, dtype=float)
 
 
 class LevelDependentGain(EffectBlock):
@@ -655,13 +658,13 @@ class LevelDependentGain(EffectBlock):
     def _run(self, x: Array) -> Array:
         p = self._params
         q = (x - p["x_c"]) / p["span"]
-        return x + p["span"] * (p["c2"] * q * q + p["c3"] * q**3)
+        return np.asarray(x + p["span"] * (p["c2"] * q * q + p["c3"] * q**3), dtype=float)
 
     def slope(self, x: ArrayLike) -> Array:
         """``dy/dx`` (1): the factor by which a small minor loop at level ``x`` is scaled."""
         p = self._params
         q = (np.asarray(x, dtype=float) - p["x_c"]) / p["span"]
-        return 1 + 2 * p["c2"] * q + 3 * p["c3"] * q * q
+        return np.asarray(1 + 2 * p["c2"] * q + 3 * p["c3"] * q * q, dtype=float)
 
     def inverse(self, y: ArrayLike) -> Array:
         """``x`` with ``self(x) = y`` (Newton iteration; the map must be monotone on the range)."""
@@ -792,7 +795,7 @@ class OutputFeedback(FeedbackBlock):
         p = self._params
         d = x - p["y_c"]
         q = d / p["span"]
-        return d * (p["a"] + q * (p["b"] + p["c"] * q))
+        return np.asarray(d * (p["a"] + q * (p["b"] + p["c"] * q)), dtype=float)
 
     def simulate(self, table: Any, u: ArrayLike, state: Any) -> tuple[Array, Array, Any]:
         """Run the Preisach ``table`` with this feedback; returns ``(y, u_eff, final_state)``."""
@@ -854,13 +857,20 @@ class RateDependentWidth(EffectBlock):
         uu = np.asarray(u, dtype=float)
         v = np.abs(np.diff(uu, prepend=uu[:1])) / self.dt
         rho = _lag(v, math.exp(-self.dt / self._params["tau_v"]), 0.0)
-        return (np.maximum(rho, 0.0) / self._params["rho_ref"]) ** self._params["exponent"]
+        return np.asarray(
+            (np.maximum(rho, 0.0) / self._params["rho_ref"]) ** self._params["exponent"],
+            dtype=float,
+        )
 
     def apply(self, x: ArrayLike, u: ArrayLike, anhysteretic: ArrayLike) -> Array:
         """Output (V) for the Preisach output ``x``, the input ``u`` and ``A(u)`` (all V)."""
         xx = np.asarray(x, dtype=float)
-        return xx + self._params["c"] * self.rate_factor(u) * (
-            xx - np.asarray(anhysteretic, dtype=float)
+        return np.asarray(
+            xx
+            + self._params["c"]
+            * self.rate_factor(u)
+            * (xx - np.asarray(anhysteretic, dtype=float)),
+            dtype=float,
         )
 
 
@@ -884,10 +894,10 @@ class GainOffset(EffectBlock):
 
     def reset(self, x0: float) -> float:
         """Return ``gain * x0 + offset`` (a static map has no state to reset)."""
-        return self._params["gain"] * _finite(self.kind, "x0", x0) + self._params["offset"]
+        return float(self._params["gain"] * _finite(self.kind, "x0", x0) + self._params["offset"])
 
     def _run(self, x: Array) -> Array:
-        return self._params["gain"] * x + self._params["offset"]
+        return np.asarray(self._params["gain"] * x + self._params["offset"], dtype=float)
 
 
 #: EffectBlock classes by class name (several may share a ``kind``: two forms of rate dependence).

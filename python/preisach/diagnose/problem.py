@@ -179,7 +179,10 @@ class Problem:
         N[np.diag_indices(p)] += lam
         rhs += lam * ctx.theta0
         # Cholesky without the condition estimate of linalg.solve (the ridge keeps N definite)
-        return linalg.cho_solve(linalg.cho_factor(N, check_finite=False), rhs, check_finite=False)
+        return np.asarray(
+            linalg.cho_solve(linalg.cho_factor(N, check_finite=False), rhs, check_finite=False),
+            dtype=float,
+        )
 
     def _profiled_predict(self, x: Array, coarse: bool = False) -> dict[int, Array]:
         theta = self.theta(x, coarse)
@@ -239,7 +242,7 @@ class Problem:
         """Clip ``x`` just inside the parameter bounds."""
         span = self.hi - self.lo
         eps = np.where(np.isfinite(span), 1e-9 * span, 0.0)
-        return np.clip(np.asarray(x, float), self.lo + eps, self.hi - eps)
+        return np.asarray(np.clip(np.asarray(x, float), self.lo + eps, self.hi - eps), dtype=float)
 
     def predict(self, i: int, x: Array) -> Array:
         """Prediction (V) of recording ``i`` with the candidate at ``x`` (weights fixed)."""

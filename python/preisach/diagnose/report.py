@@ -6,7 +6,7 @@ import json
 import math
 import os
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Union
+from typing import TYPE_CHECKING, Any, Union, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -167,7 +167,7 @@ class DiagnosisReport:
                 "notes": self.notes,
             }
         )
-        return _jsonable(d)
+        return cast("dict[str, Any]", _jsonable(d))
 
     def summary(self) -> str:
         """Readable text: verdict, statements, evidence, candidate table, residual analysis."""
