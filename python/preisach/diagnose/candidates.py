@@ -238,6 +238,20 @@ class LinearDynamicsForm(Candidate):
         return f" (general linear block: {self._classes[-1].reason})" if self._classes else ""
 
 
+def _delay_beside_mode(cls: Classification, tau: float) -> bool:
+    """Whether a general block classified as a mode also shows a delay of about ``tau`` (s).
+
+    A mode alone delays slow signals by ``zeta / (pi f_n)`` (its low-frequency group delay);
+    what the block shows beyond that, when it is at least half the fitted delay, is a delay in
+    front of (or behind) the mode: both are there, and the greedy selection takes the delay
+    first and the mode at its next step (with the delay kept, the mode's fit no longer bends its
+    damping to imitate the delay).
+    """
+    if cls.kind != "mode" or not tau > 0 or not cls.f_n > 0:
+        return False
+    return bool(cls.tau0 - cls.zeta / (math.pi * cls.f_n) >= 0.5 * tau)
+
+
 class DelayCandidate(LinearDynamicsForm):
     """Transport delay or measurement lag of the output: a flat group delay."""
 
@@ -267,7 +281,14 @@ class DelayCandidate(LinearDynamicsForm):
     def implausible(self, x: Array, ctx: Context) -> str | None:
         if x[0] >= 0.98 * ctx.max_delay:
             return f"delay at its bound ({1e3 * x[0]:.3g} ms): a slower effect, not a delay"
-        return super().implausible(x, ctx)
+        for cls in self._classes:
+            if cls.kind in self.CLASSES or _delay_beside_mode(cls, float(x[0])):
+                continue
+            return (
+                "the general linear block fitted to the same training samples is not "
+                f"{self.FORM}: {cls.reason}"
+            )
+        return None
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         ms, e = 1e3 * x[0], 1e3 * _sd(cov, 0)

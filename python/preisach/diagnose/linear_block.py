@@ -64,7 +64,7 @@ MIN_DELAY_SAMPLES = 0.1
 PEAK_PROMINENCE = 1.5
 #: Relative power density of the input's first difference down to which a band counts as
 #: excited (see :func:`_excited_band`).
-EXCITED = 1e-4
+EXCITED = 1e-2
 #: Smallest height of a mode's ``|H - 1|`` peak (a 2 % deviation of the response).
 MIN_PEAK = 0.02
 
