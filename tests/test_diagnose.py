@@ -62,7 +62,8 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
         "unexplained",
         "base_grid",
     }
-    assert set(d["noise_test"]) == {"ratio", "threshold", "consistent"}
+    assert set(d["noise_test"]) == {"ratio", "threshold", "classical", "consistent"}
+    assert d["noise_test"]["classical"] is None  # an effect was kept: no resolution check
     assert d["verdict"] == "delay"
     for e in d["effects"]:
         assert set(e) == {

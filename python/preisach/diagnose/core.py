@@ -25,7 +25,7 @@ from .locate import analyse_residuals
 from .registry import CANDIDATES
 from .report import DiagnosisReport, EffectReport, candidate_table, unexplained_of, where_of
 from .scoring import sign_flip_p
-from .selection import GridChoice, Selection, choose_grid, run_selection
+from .selection import GridChoice, Selection, choose_grid, resolution_check, run_selection
 
 __all__ = ["diagnose", "separating_experiment"]
 
@@ -231,8 +231,13 @@ def diagnose(
         noise when its RMS is at most ``noise_ratio`` times the noise (default 2, i.e. an
         excess variance of at most 3 noise variances; a re-identified classical model on
         effect-free data leaves 1.4-1.7 x, its own discretisation error).  Nothing kept and
-        above the bound: verdict ``"unexplained"``; effects kept and above it: the remainder
-        is reported as :attr:`DiagnosisReport.unexplained`.
+        above the bound, with a refitted base: the resolution check
+        (:func:`~preisach.diagnose.selection.resolution_check`: a classical model on a
+        61-level grid with a smooth density and free initial states, predicting interleaved
+        10 ms stretches) decides - within the same bound the verdict is ``"none"`` (the
+        residual is the base's resolution), else ``"unexplained"``; without a refit:
+        ``"unexplained"``.  Effects kept and above the bound: the remainder is reported as
+        :attr:`DiagnosisReport.unexplained`.
     sigma : float, optional
         Noise standard deviation (V) when known; default estimated from the data.
     max_delay : float, optional
@@ -595,7 +600,17 @@ def _report(
     )
     ratio = rmse_after / sigma_hat if sigma_hat > 0 else float("inf")
     consistent = bool(ratio <= noise_ratio)
-    noise_test = {"ratio": ratio, "threshold": float(noise_ratio), "consistent": consistent}
+    # nothing kept and above the bound: is the residual the base's resolution? (nulls owner)
+    check = None
+    if do_refit and not (names or consistent):
+        check = resolution_check(ctx, sigma_hat, noise_ratio)
+        consistent = bool(check["consistent"])
+    noise_test: dict[str, Any] = {
+        "ratio": ratio,
+        "threshold": float(noise_ratio),
+        "classical": check,
+        "consistent": consistent,
+    }
     unexplained = None
     if not consistent:
         unexplained = unexplained_of(
@@ -609,6 +624,8 @@ def _report(
     ]
     if grid is not None and grid["changed"]:
         notes.append(grid["statement"])
+    if noise_test["classical"] is not None:
+        notes.append(noise_test["classical"]["statement"])
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "

@@ -79,8 +79,10 @@ class DiagnosisReport:
     verdict : str
         Name of the most important effect; ``"none"`` when nothing was kept and the held-out
         residual is consistent with the noise (its RMS at most ``noise_ratio`` times the
-        noise, see :attr:`noise_test`); ``"unexplained"`` when nothing was kept although the
-        residual is clearly above the noise (:attr:`unexplained` says where it lives).
+        noise, or - with a refitted base - a classical Preisach model on a fine grid predicts
+        interleaved held-out stretches within that bound: the residual is the base's
+        resolution, see :attr:`noise_test`); ``"unexplained"`` when nothing was kept although
+        the residual is clearly above the noise (:attr:`unexplained` says where it lives).
     effects : list of EffectReport
         Kept effects, most important first (the order of the forward selection).
     rmse_before : float
@@ -97,8 +99,12 @@ class DiagnosisReport:
     candidates : list of dict
         Every candidate in every selection step: held-out RMSE, gain, p-value, decision.
     noise_test : dict
-        ``ratio`` (held-out RMSE after the kept effects over the noise), ``threshold`` and
-        ``consistent`` (``ratio <= threshold``).
+        ``ratio`` (held-out RMSE after the kept effects over the noise), ``threshold``,
+        ``classical`` (None, or when nothing was kept above the bound with a refitted base:
+        the resolution check of :func:`~preisach.diagnose.selection.resolution_check` -
+        ``ratio``, ``heldout_rmse``, ``levels``, ``smoothing``, ``stretch_s``, ``seconds``,
+        ``consistent``, ``statement``) and ``consistent`` (``ratio <= threshold``, or the
+        classical check's ratio within it).
     unexplained : dict or None
         When the final held-out residual is above ``threshold`` times the noise: ``ratio``,
         ``statement`` (the localisation in words), ``where`` (recordings, input range,
@@ -181,7 +187,8 @@ class DiagnosisReport:
             nt = self.noise_test
             lines.append(
                 f"held-out RMSE / noise = {nt['ratio']:.3g} "
-                f"({'within' if nt['consistent'] else 'above'} the {nt['threshold']:g} x bound)"
+                f"({'within' if nt['ratio'] <= nt['threshold'] else 'above'} the "
+                f"{nt['threshold']:g} x bound)"
             )
         if self.unexplained is not None:
             lines.append(f"unexplained: {self.unexplained['statement']}")

@@ -51,14 +51,14 @@ import numpy as np
 
 from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, Fold
-from .scoring import Score, heldout_score, make_folds, sign_flip_p
+from .scoring import Score, classical_check, heldout_score, make_folds, sign_flip_p
 
 #: the finer grid a refitted base is tried on when the model's grid leaves too much
 FINE_LEVELS = 41
 #: the firmer ridge (relative to the mean diagonal of the normal matrix) those bases get
 FIRM_RIDGE = 1e-4
 
-__all__ = ["Selection", "StepResult", "run_selection"]
+__all__ = ["Selection", "StepResult", "resolution_check", "run_selection"]
 
 
 @dataclass
@@ -223,6 +223,45 @@ def choose_grid(
     if keep:
         return GridChoice(alt, ac, ascore, report)
     return GridChoice(ctx, chains, score, report)
+
+
+def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str, Any]:
+    """Decide whether a residual no candidate explains is the base's resolution.
+
+    The second half of the noise test.
+
+    Called when no effect was kept and the refitted base's held-out residual (time blocks
+    of about a second) is above ``noise_ratio`` times the noise ``sigma``.  A base refitted
+    on the model's grid cannot hold a Preisach density finer or rougher than that grid, and
+    a finer grid's weights are barely constrained by blocks of a second (the held-out
+    reversal points were not seen), so that residual can be pure model resolution.  The
+    fine classical model of :func:`~preisach.diagnose.scoring.classical_check` (61 levels,
+    smooth density, predicting interleaved 10 ms stretches from their neighbours) decides:
+    when its held-out RMS is within the same bound, a classical Preisach model explains
+    the recordings to the noise - no physics is missing (``consistent``), the residual is
+    the identification's resolution.  Otherwise it is evidence of something no
+    rate-independent congruent model produces, and stays unexplained.
+
+    Returns the JSON-ready check with ``consistent`` and a one-line ``statement``.
+    """
+    chk = classical_check(ctx, sigma)
+    ok = bool(chk.ratio <= noise_ratio)
+    n = int(ctx.levels.size)
+    if ok:
+        statement = (
+            f"a classical Preisach model on a {chk.levels}-level grid (smooth density) predicts "
+            f"interleaved {1e3 * chk.stretch:.0f} ms held-out stretches at {chk.ratio:.3g} x "
+            f"the noise (bound {noise_ratio:g} x): the residual the {n}-level base leaves is its "
+            "resolution, not missing physics"
+        )
+    else:
+        statement = (
+            f"even a classical Preisach model on a {chk.levels}-level grid (smooth density) "
+            f"leaves {chk.ratio:.3g} x the noise on interleaved {1e3 * chk.stretch:.0f} ms "
+            f"held-out stretches (bound {noise_ratio:g} x): the residual is not the base's "
+            "resolution"
+        )
+    return {**chk.as_dict(), "consistent": ok, "statement": statement}
 
 
 def run_selection(
