@@ -235,6 +235,7 @@ class ClassicalCheck:
     smoothing: float
     stretch: float  # length (s) of the interleaved held-out stretches
     seconds: float
+    sse_blocks: Array  # held-out SSE per time block of the recordings (as in Score)
 
     def as_dict(self) -> dict[str, float | int]:
         """JSON-ready fields."""
@@ -256,6 +257,7 @@ def classical_check(
     smoothing: float = CHECK_SMOOTHING,
     stretch: float = CHECK_STRETCH,
     state_knots: int = CHECK_STATE_KNOTS,
+    drift: bool = False,
 ) -> ClassicalCheck:
     """How close the best-resolved classical Preisach model comes to the diagnosis recordings.
 
@@ -276,12 +278,26 @@ def classical_check(
     rate dependence across experiments, a delay, ringing) stays.  The time-block folds of
     the selection instead hold out whole seconds, whose reversal points a fine grid has not
     seen - the right test for an effect, too harsh for the base's resolution.
+
+    ``drift``: every recording also gets the sensor drift of the selection (the P-spline in
+    time of :meth:`Context.drift_basis` with its curvature penalty), to measure what a drift
+    adds to a classical model whose initial states are free.
     """
     t0 = time.perf_counter()
     n = int(levels)
     lv = np.linspace(ctx.model.u_min, ctx.model.u_max, n)
     p = n * (n - 1) // 2 + 1
     bases = [running_range_basis(r.u, r.dt, state_knots, 4.0 * stretch) for r in ctx.recs]
+    pens: list[tuple[int, Array]] = []  # (first column, penalty) of each drift block
+    if drift:
+        for i, r in enumerate(ctx.recs):
+            D = ctx.drift_basis(i)
+            m = D.shape[1]
+            dd = np.diff(np.eye(m), 2, axis=0) if m > 2 else np.zeros((0, m))
+            Du = D[r.usable]
+            lam = ctx.drift_smoothing * max(float(np.einsum("ij,ij->", Du, Du)) / m, 1e-300)
+            pens.append((bases[i].shape[1], lam * (dd.T @ dd)))
+            bases[i] = np.hstack([bases[i], D])
     offs = np.cumsum([0] + [B.shape[1] for B in bases])
     q = int(offs[-1])
     P = p + q
@@ -289,6 +305,8 @@ def classical_check(
     rhs = np.zeros((3, P))
     yy = np.zeros(3)
     cnt = np.zeros(3)
+    folds: list[NDArray[np.int64]] = []
+    regs: list[sp.csr_matrix] = []
     for i, r in enumerate(ctx.recs):
         if r.ident:
             fold = np.where(r.usable, 2, -1)
@@ -301,6 +319,8 @@ def classical_check(
         )
         indptr, idx, data, _ = _core.regressor_rows(lv, r.u, s0, "clamp")
         R = sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(r.n, p))
+        folds.append(fold)
+        regs.append(R)
         B = bases[i]
         cols = slice(int(offs[i]) + p, int(offs[i + 1]) + p)
         for k in range(3):
@@ -323,19 +343,33 @@ def classical_check(
     w0 = np.concatenate([e[ii, jj], [ctx.model.y_min], np.zeros(q)])
     Q = density_roughness(n).toarray()
     Q *= p / max(float(np.trace(Q)), 1e-300)
-    sse = 0.0
+    nb = max(int(r.block.max()) for r in ctx.recs) + 1
+    sse_b = np.zeros(nb)
+    cnt_b = np.zeros(nb)
     for k in (0, 1):
         N = A[1 - k] + A[2]
         scale = max(float(np.trace(N[:p, :p])) / p, 1e-300)
         N[:p, :p] += smoothing * scale * Q
+        for i, (first, pen) in enumerate(pens):
+            c0 = p + int(offs[i]) + first
+            N[c0 : c0 + pen.shape[0], c0 : c0 + pen.shape[0]] += pen
         N[np.diag_indices(P)] += 1e-7 * scale
         w = linalg.cho_solve(
             linalg.cho_factor(N, check_finite=False),
             rhs[1 - k] + rhs[2] + 1e-7 * scale * w0,
             check_finite=False,
         )
-        sse += max(float(yy[k] - 2.0 * w @ rhs[k] + w @ A[k] @ w), 0.0)
-    rmse = math.sqrt(sse / max(float(cnt[0] + cnt[1]), 1.0))
+        for i, r in enumerate(ctx.recs):
+            m = folds[i] == k
+            if r.ident or not m.any():
+                continue
+            cols = slice(p + int(offs[i]), p + int(offs[i + 1]))
+            res = r.y[m] - (regs[i][m] @ w[:p] + bases[i][m] @ w[cols])
+            sse_b += np.bincount(r.block[m], weights=res**2, minlength=nb)
+            cnt_b += np.bincount(r.block[m], minlength=nb)
+    rmse = math.sqrt(float(sse_b.sum()) / max(float(cnt_b.sum()), 1.0))
     ratio = rmse / sigma if sigma > 0 else float("inf")
     seconds = time.perf_counter() - t0
-    return ClassicalCheck(ratio, rmse, n, float(smoothing), float(stretch), seconds)
+    return ClassicalCheck(
+        ratio, rmse, n, float(smoothing), float(stretch), seconds, sse_b[cnt_b > 0]
+    )
