@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,7 +48,16 @@ if TYPE_CHECKING:  # pragma: no cover
     from .context import Context
     from .problem import Problem
 
-__all__ = ["FLAT", "MAX_ZETA", "Classification", "LinearBlockFit", "classify", "fit_linear_block"]
+__all__ = [
+    "FLAT",
+    "MAX_ZETA",
+    "Classification",
+    "LinearBlockFit",
+    "bulk_delay",
+    "classify",
+    "fit_linear_block",
+    "rate_not_shown",
+]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -67,10 +76,40 @@ PEAK_PROMINENCE = 1.5
 EXCITED = 1e-2
 #: Smallest height of a mode's ``|H - 1|`` peak (a 2 % deviation of the response).
 MIN_PEAK = 0.02
+#: Height over the band's median deviation that a peak seen only once a delay is taken out
+#: of the response must reach: the FIR's estimation noise leaves a deviation whose ~50
+#: independent values (one per tap) reach about 2.4 x their median, and 4 x at 1e-3.
+NOISE_FLOOR = 4.0
 
 
-def _alone(fit: LinearBlockFit, fp: float, peak: float, f_top: float) -> bool:
-    """Whether ``|H - 1|`` stays below ``peak / PEAK_PROMINENCE`` away from ``fp``.
+def bulk_delay(fit: LinearBlockFit) -> float:
+    """Return the pure delay (s) that best flattens the block's response, ``tau_d``.
+
+    A delay in series with a mode multiplies its response by ``exp(-2 pi i f tau_d)``: ``|H|``
+    keeps the mode's peak, but ``|H - 1|`` gains the delay's ``2 |sin(pi f tau_d)|``, which
+    rises to 2 toward half the sample rate - as high as a moderately participating mode's
+    peak, so the mode went unseen beside a 1 ms delay.  The mode is therefore judged on
+    ``|H exp(2 pi i f tau_d) - 1|``, the deviation left once the delay is taken out.
+    ``tau_d`` minimises the median of that deviation over the band (a mode's peak is narrow,
+    so the median sees the delay; a pure delay gives 0, a lag its low-frequency lag), on a
+    grid of 0.05 samples up to the numerator's length.
+    """
+    fs = 1.0 / fit.dt
+    f = np.linspace(0.002 * fs, 0.45 * fs, 400)
+    h = fit.response(f)
+    taus = np.arange(0.0, max(fit.b.size, 1), 0.05) * fit.dt
+    med = np.median(np.abs(h[None, :] * np.exp(2j * np.pi * np.outer(taus, f)) - 1.0), axis=1)
+    return float(taus[int(np.argmin(med))])
+
+
+def _deviation(fit: LinearBlockFit, f: Array, tau_d: float) -> Array:
+    """``|H exp(2 pi i f tau_d) - 1|`` at the frequencies ``f`` (Hz): the block minus a delay."""
+    f = np.asarray(f, float)
+    return np.asarray(np.abs(fit.response(f) * np.exp(2j * np.pi * f * tau_d) - 1.0))
+
+
+def _alone(fit: LinearBlockFit, fp: float, peak: float, f_top: float, tau_d: float = 0.0) -> bool:
+    """Whether the deviation (:func:`_deviation`) stays below ``peak / PEAK_PROMINENCE`` off ``fp``.
 
     A mode has one peak; a delay's ``|H - 1| = 2 |sin(pi f tau)|`` has equal humps at every
     odd multiple of ``1 / (2 tau)``, the higher ones narrow enough to pass for modes.
@@ -80,22 +119,32 @@ def _alone(fit: LinearBlockFit, fp: float, peak: float, f_top: float) -> bool:
     away = (f < fp / 1.5) | (f > 1.5 * fp)
     if not away.any():
         return True
-    return bool(np.max(np.abs(fit.response(f[away]) - 1.0)) * PEAK_PROMINENCE <= peak)
+    return bool(np.max(_deviation(fit, f[away], tau_d)) * PEAK_PROMINENCE <= peak)
 
 
-def _sharp_peak(fit: LinearBlockFit, f_top: float) -> tuple[float, float, float] | None:
-    """Return a sharp peak of ``|H - 1|`` whatever parametrises it, or None.
+def _sharp_peak(
+    fit: LinearBlockFit,
+    f_top: float,
+    tau_d: float = 0.0,
+    floor: float = 0.0,
+    tau_alone: float | None = None,
+) -> tuple[float, float, float] | None:
+    """Return a sharp peak of the deviation whatever parametrises it, or None.
 
     The FIR taps may carry the first cycles of a ring.  Returned: frequency (Hz), damping
     ratio from the half-power bandwidth (``zeta = bandwidth / (2 f_peak)``; a delay's first
-    hump gives 0.5), prominence.
+    hump gives 0.5), prominence.  The deviation is ``|H - 1|`` with the delay ``tau_d``
+    taken out (:func:`_deviation`); with ``floor`` > 0 the peak must also be ``floor`` times
+    the deviation's median over the band (taking a delay out of an FIR's response leaves its
+    estimation noise, whose wiggles at high frequency are as narrow as a ring).  ``tau_alone``
+    (default ``tau_d``) is the delay taken out for the check that the peak stands alone.
     """
     fs = 1.0 / fit.dt
     f = np.linspace(0.002 * fs, f_top, 2000)
-    dev = np.abs(fit.response(f) - 1.0)
+    dev = _deviation(fit, f, tau_d)
     k = int(np.argmax(dev))
     peak = float(dev[k])
-    if k == 0 or k == f.size - 1 or peak < MIN_PEAK:
+    if k == 0 or k == f.size - 1 or peak < MIN_PEAK or peak < floor * float(np.median(dev)):
         return None
     half = peak / math.sqrt(2.0)
     lo = k
@@ -109,8 +158,9 @@ def _sharp_peak(fit: LinearBlockFit, f_top: float) -> tuple[float, float, float]
     fp = float(f[k])
     zeta = float((f[hi] - f[lo]) / (2 * fp))
     side = [0.5 * fp, 2.0 * fp] if 2.0 * fp <= f_top else [0.5 * fp]
-    prom = peak / max(float(np.max(np.abs(fit.response(np.array(side)) - 1.0))), 1e-300)
-    if zeta < MAX_ZETA and prom >= PEAK_PROMINENCE and _alone(fit, fp, peak, f_top):
+    prom = peak / max(float(np.max(_deviation(fit, np.array(side), tau_d))), 1e-300)
+    t_alone = tau_d if tau_alone is None else tau_alone
+    if zeta < MAX_ZETA and prom >= PEAK_PROMINENCE and _alone(fit, fp, peak, f_top, t_alone):
         return fp, zeta, prom
     return None
 
@@ -204,6 +254,21 @@ class Classification:
     prominence: float
     reason: str
     fit: LinearBlockFit | None = None
+    #: Height of the mode's deviation peak (``|H - 1|`` with the bulk delay taken out; NaN
+    #: without a mode), from which its participation follows (:meth:`participation`).
+    peak: float = float("nan")
+    #: The pure delay (s) that best flattens the response (:func:`bulk_delay`).
+    tau_d: float = 0.0
+
+    def participation(self) -> float:
+        """Participation of the mode, from its peak: ``|H - 1| = p |M(f_n) - 1|`` at ``f_n``.
+
+        A mode ``M`` with damping ratio ``zeta`` has ``|M(f_n) - 1| = sqrt(1 + 1 / (4 zeta^2))``
+        at its natural frequency; 1 when unknown.
+        """
+        if not (self.peak > 0 and self.zeta > 0):
+            return 1.0
+        return float(min(1.0, self.peak / math.sqrt(1.0 + 1.0 / (4.0 * self.zeta**2))))
 
 
 def _excited_band(xs: list[Array], masks: list[Mask], dt: float) -> float:
@@ -377,31 +442,37 @@ def classify(fit: LinearBlockFit) -> Classification:
     # below 0.45 x the sample rate: a ring after steps is excited even where the rest of the
     # input has no power)
     f_top = 0.45 * fs
+    tau_d = bulk_delay(fit)
     best: tuple[float, float, float] | None = None
     for f_n, zeta in fit.poles():
         if not (zeta < MAX_ZETA and 0.002 * fs <= f_n <= f_top):
             continue
         f = np.linspace(0.85 * f_n, min(1.15 * f_n, 0.49 * fs), 61)
-        dev = np.abs(fit.response(f) - 1.0)
+        dev = _deviation(fit, f, tau_d)
         k = int(np.argmax(dev))
         fp, peak = float(f[k]), float(dev[k])
         side = [0.5 * fp, min(2.0 * fp, f_top)] if 2.0 * fp <= f_top else [0.5 * fp]
-        bg = float(np.max(np.abs(fit.response(np.array(side)) - 1.0)))
+        bg = float(np.max(_deviation(fit, np.array(side), tau_d)))
         prom = peak / max(bg, 1e-300)
         if (
             prom >= PEAK_PROMINENCE
             and peak >= MIN_PEAK
-            and _alone(fit, fp, peak, f_top)
+            and _alone(fit, fp, peak, f_top, tau_d)
             and (best is None or prom > best[2])
         ):
             best = (f_n, zeta, prom)
-    if best is None:
+    if best is None:  # a peak of |H - 1| itself, standing alone once the delay is out
         best = _sharp_peak(fit, f_top)
+        if best is None and tau_d > 0:
+            best = _sharp_peak(fit, f_top, tau_alone=tau_d)
+    if best is None and tau_d > 0:  # a peak only once the delay is out, above the FIR's noise
+        best = _sharp_peak(fit, f_top, tau_d, floor=NOISE_FLOOR)
     f_top = max(min(fit.f_max, 0.45 * fs), 0.01 * fs)  # the group delay: in the excited band
     f_lo = max(0.002 * fs, 0.5)
     tau0 = float(np.mean(fit.group_delay(np.linspace(f_lo, 2 * f_lo, 5))))
     if best is not None:
         f_n, zeta, prom = best
+        height = float(_deviation(fit, np.array([f_n]), tau_d)[0])
         return Classification(
             "mode",
             tau0,
@@ -410,7 +481,10 @@ def classify(fit: LinearBlockFit) -> Classification:
             zeta,
             prom,
             f"a resonant peak at {f_n:.4g} Hz, damping ratio {zeta:.2g}, |H - 1| "
-            f"{prom:.2g} x its level an octave away",
+            f"{prom:.2g} x its level an octave away"
+            + (f" (with a delay of {1e3 * tau_d:.3g} ms taken out)" if tau_d > 0 else ""),
+            peak=height,
+            tau_d=tau_d,
         )
     if tau0 < MIN_DELAY_SAMPLES * dt:
         return Classification(
@@ -505,3 +579,71 @@ def classify_problem(ctx: Context, prob: Problem) -> Classification:
         cache.clear()
     cache[key] = cls
     return cls
+
+
+#: Effect names of the linear dynamics between the hysteresis and the sensor.
+LINEAR_NAMES = ("delay", "structural_resonance")
+
+
+def rate_not_shown(
+    names: dict[str, str],
+    sse_blocks: dict[str, Array],
+    n_params: dict[str, float],
+    qualifies: dict[str, bool],
+    p_value: Callable[[Array], float],
+    alpha: float,
+) -> dict[str, str]:
+    """Why qualifying rate-dependence forms are not named: linear dynamics explain as much.
+
+    Rate dependence changes the hysteresis itself: loops that widen with the input rate.  A
+    linear block *after* the hysteresis (a delay, a measurement lag, a mode) also makes the
+    output trail the model more the faster the input moves, and a first-order lag in front of
+    the relays differs from a lag or a delay behind them only at sharp reversals.  So a rate
+    form is named only when it predicts the held-out blocks significantly better (one-sided
+    sign-flip test at ``alpha``) than every linear-dynamics form of the same step with no more
+    parameters - whether or not that form qualified for its own name: if a time shift after
+    the hysteresis does as well, the loops' change with the rate is not shown, and the
+    simpler explanation (the hysteresis as identified) is preferred, or, when no linear form
+    qualifies either, nothing is named.
+
+    Parameters
+    ----------
+    names : dict
+        Candidate key -> effect name, for every candidate fitted in the step.
+    sse_blocks : dict
+        Candidate key -> held-out SSE per block (V^2).
+    n_params, qualifies : dict
+        Candidate key -> number of fitted parameters; whether it qualifies so far.
+    p_value : callable
+        One-sided p-value of a positive mean of block differences (the sign-flip test).
+    alpha : float
+        Level of the test.
+
+    Returns
+    -------
+    dict
+        Rate candidate key -> the reason it is not named.
+    """
+    out: dict[str, str] = {}
+    linear = [k for k, n in names.items() if n in LINEAR_NAMES]
+    for key, name in names.items():
+        if name != "rate_dependence" or not qualifies.get(key):
+            continue
+        rivals = [k for k in linear if n_params[k] <= n_params[key]]
+        if not rivals:
+            continue
+        best = min(rivals, key=lambda k: float(sse_blocks[k].sum()))
+        p = p_value(sse_blocks[best] - sse_blocks[key])
+        if p >= alpha:
+            ratio = math.sqrt(
+                float(sse_blocks[best].sum()) / max(float(sse_blocks[key].sum()), 1e-300)
+            )
+            out[key] = (
+                f"not shown to be rate dependence: a linear block after the hysteresis "
+                f"({best}, {n_params[best]:g} parameter(s)) predicts the held-out data as well "
+                f"(its held-out RMSE {ratio:.3g} x this one's, sign-flip p = {p:.2g} >= "
+                f"{alpha:g}); the same loop at several drive frequencies with sharp reversals "
+                "separates them (a delay shifts the whole output in time, rate dependence "
+                "widens the loops with the rate)"
+            )
+    return out

@@ -51,6 +51,7 @@ import numpy as np
 
 from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, Fold
+from .linear_block import rate_not_shown
 from .scoring import Score, classical_check, heldout_score, make_folds, sign_flip_p
 
 #: the finer grid a refitted base is tried on when the model's grid leaves too much
@@ -418,6 +419,18 @@ def run_selection(
                         f"{gain_c:.2f} x the noise variance on interleaved held-out "
                         f"stretches, < {DRIFT_BEYOND_CLASSICAL:g}, or p = {p_c:.2g})"
                     )
+        # rate dependence is named only when no linear block after the hysteresis with as few
+        # parameters predicts the held-out data as well (linear_block.rate_not_shown)
+        names = {n: remaining[n].name for n in scores}
+        for name, why_not in rate_not_shown(
+            names,
+            {n: sc.sse_blocks for n, sc in scores.items()},
+            n_par,
+            ok,
+            lambda d: sign_flip_p(d, seed=len(steps)),
+            alpha,
+        ).items():
+            ok[name], why[name] = False, why_not
         quals = [n for n in scores if ok[n]]
         chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
         steps.append(
