@@ -641,7 +641,7 @@ def rate_not_shown(
             out[key] = (
                 f"not shown to be rate dependence: a linear block after the hysteresis "
                 f"({best}, {n_params[best]:g} parameter(s)) predicts the held-out data as well "
-                f"(its held-out RMSE {ratio:.3g} x this one's, sign-flip p = {p:.2g} >= "
+                f"or better (its held-out RMSE {ratio:.3g} x this one's, sign-flip p = {p:.2g} >= "
                 f"{alpha:g}); the same loop at several drive frequencies with sharp reversals "
                 "separates them (a delay shifts the whole output in time, rate dependence "
                 "widens the loops with the rate)"
