@@ -755,6 +755,12 @@ class Context:
         """
         if hasattr(cand, "fit_chain"):  # a family solved by its own least squares
             return cast(Chain, cand.fit_chain(self, fixed, train, drift))
+        return self.fit_profiled(cand, fixed, train, drift)
+
+    def fit_profiled(
+        self, cand: Candidate, fixed: Chain, train: list[Mask], drift: bool = False
+    ) -> Chain:
+        """Fit ``cand`` by the optimiser as :meth:`fit` does (also for a ``fit_chain``)."""
         if not self.refits(fixed):
             chain = fixed.plus(self._fit_params(cand, fixed, train, drift, None, profile=False))
             chosen = self.choose_states(chain, drift)
@@ -802,6 +808,9 @@ class Context:
     def covariance(self, chain: Chain, train: list[Mask], drift: bool = False) -> Array | None:
         """Block-clustered sandwich covariance of the last effect's parameters at the optimum."""
         eff = chain.effects[-1]
+        fit_context = getattr(eff.cand, "fit_context", None)
+        if fit_context is not None and fit_context(self) is not self:  # fitted on another grid
+            return cast("Context", fit_context(self)).covariance(chain, train, drift)
         from .problem import Problem
 
         # with a refitted base the weights are profiled out, so their trade-off with the
