@@ -103,3 +103,66 @@ def test_heldout_outputs_do_not_enter_the_spline_fit():
     x1, theta1, _ = fit(moved)
     np.testing.assert_allclose(x1, x0, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(theta1, theta0, rtol=1e-9, atol=1e-12)
+
+
+def _saturating_interaction_device(u: np.ndarray, seed: int) -> np.ndarray:
+    """A piezo whose domains feel a mean field that saturates with the strain (V).
+
+    Physical description, written without the candidates' forms: the relays of a Preisach
+    model (the built-in ss15 table) see the drive plus an interaction field proportional to
+    the output that saturates like ``tanh`` at high strain (Della Torre's moving model with
+    a saturating interaction); 1 mV sensor noise.  Minor loops between the same drive levels
+    then differ with the strain they sit at.
+    """
+    m = PreisachModel.builtin("ss15-1hz", levels=21)
+    sim = core.Simulator(m.table, m.negative_saturation())
+    y = np.empty(u.size)
+    prev = m.y_min
+    for k, v in enumerate(u):
+        field = 60.0 * np.tanh((prev - 0.3) / 1.5)  # V of drive per the strain's mean field
+        prev = y[k] = sim.step(float(np.clip(v + field, m.u_min, m.u_max)))
+    return y + np.random.default_rng(seed).normal(0.0, 1e-3, u.size)
+
+
+def test_non_congruence_named_on_a_saturating_interaction():
+    """A moving model with a tanh interaction (no polynomial) is named non-congruence.
+
+    Identification: an FOD sweep of the device; diagnosis: the same small loop at five drive
+    offsets, reached from below and from above, and a slow multi-sine.  Fails when the
+    feedback candidate stops naming a form it was not written for.
+    """
+    from preisach.diagnose import diagnose
+    from preisach.identify import identify_fod
+    from preisach.waveforms import fod_sweep, legs
+
+    dt = 1e-3
+    sweep = fod_sweep(np.linspace(-100.0, 100.0, 11), frequency=2.0, sample_time=dt).u
+    ident = Recording.from_arrays(
+        t=np.arange(sweep.size) * dt, u=sweep, y=_saturating_interaction_device(sweep, 0)
+    )
+    pts = [-100.0]
+    for direction in (1, -1):
+        for o in np.linspace(-60.0, 60.0, 5)[::direction]:
+            pts += [float(o), float(o + 16.0 * direction), float(o)]
+        pts.append(100.0 if direction > 0 else -100.0)
+    ladder = legs(pts, 0.1, sample_time=dt).u
+    t = np.arange(2500) * dt
+    ms = np.concatenate(
+        [legs([-100.0, 0.0], 0.3, sample_time=dt).u, 70 * np.sin(2 * np.pi * 1.3 * t)]
+    )
+    recs = []
+    for k, u in enumerate((ladder, ms)):
+        # each starts from negative saturation: the device is run from there, like the model
+        full = np.concatenate([np.full(50, -100.0), u])
+        y = _saturating_interaction_device(full, k + 1)
+        recs.append(Recording.from_arrays(t=np.arange(full.size) * dt, u=full, y=y))
+    model = identify_fod(ident, 11).model
+    rep = diagnose(
+        model,
+        recs,
+        identification=ident,
+        candidates=["non_congruence", "gain_offset", "sensor_nonlinearity"],
+        progress=False,
+    )
+    assert rep.verdict == "non_congruence", rep.summary()
+    assert rep.rmse_after < 0.5 * rep.rmse_before, rep.summary()
