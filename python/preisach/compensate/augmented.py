@@ -20,7 +20,7 @@ What is inverted, and how (``dt`` the sample time):
     ``m`` is near 1) it is pulled in to ``r_max`` (DC gain kept): the inverse is then exact
     at low frequency and stops compensating near the Nyquist frequency; the band where it
     is within 5 % of exact is reported as ``extra["bandwidth_hz"]``.
-``creep`` (``y = g x + sum c_i (L_i x - x)``)
+``creep`` (``y = x_0 + g (x - x_0) + sum c_i (L_i x - x)``)
     Exact recursion ``x[k] = (y[k] - sum c_i e_i z_i[k-1]) / (g - sum c_i e_i)``,
     ``e_i = exp(-dt / tau_i)``; stable for the fitted (positive) weights.
 ``gain_offset``, ``sensor_drift``, ``sensor_nonlinearity``
@@ -125,11 +125,11 @@ def _inv_creep(blk: Any, y: Array, y0: float, dt: float) -> Array:
     h0 = g - sum(c * ei for c, ei in zip(w, e))
     if abs(h0) < 1e-12:
         raise ValueError("creep: no direct feedthrough (g = sum c_i e_i); not invertible")
-    x0 = y0 / g
+    x0 = y0  # settled at x0 the block reads x0 (its gain acts on moves from there)
     z = [x0] * len(taus)
     out = np.empty(y.size)
     for k in range(y.size):
-        xk = (y[k] - sum(c * ei * zi for c, ei, zi in zip(w, e, z))) / h0
+        xk = (y[k] - (1.0 - g) * x0 - sum(c * ei * zi for c, ei, zi in zip(w, e, z))) / h0
         z = [ei * zi + (1.0 - ei) * xk for ei, zi in zip(e, z)]
         out[k] = xk
     return out

@@ -951,7 +951,8 @@ class DriftCandidate(Candidate):
     block_type = SensorDrift
 
     def prepare(self, ctx: Context) -> None:
-        self.knot_spacing = ctx.drift_knot_spacing
+        # how rough each recording's drift curve may be: chosen by held-out time blocks
+        self.spacings = dict(ctx.choose_drift_roughness())
 
     def specs(self, ctx: Context) -> list[ParamSpec]:
         return [ParamSpec("rate", "V/s", -np.inf, np.inf, 1e-4)]
@@ -963,8 +964,11 @@ class DriftCandidate(Candidate):
         return {"offset": 0.0, "rate": float(x[0])}
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        sp = sorted(ctx.spacing_of(i) for i in ctx.diag)
+        knots = f"{sp[0]:.2g} s" if sp[-1] <= 1.01 * sp[0] else f"{sp[0]:.2g}-{sp[-1]:.2g} s"
         return (
             f"the sensor offset drifts with time, unrelated to the input: mean rate "
-            f"{_pm(1e3 * x[0], 1e3 * _sd(cov, 0))} mV/s; re-zero the sensor before each run, "
+            f"{_pm(1e3 * x[0], 1e3 * _sd(cov, 0))} mV/s (a smooth curve per recording, knots "
+            f"every {knots} as chosen on held-out time); re-zero the sensor before each run, "
             "control its temperature, or detrend the recordings"
         )

@@ -19,11 +19,12 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
-from scipy import interpolate, linalg, optimize
+from scipy import linalg, optimize
 
 from .. import _core
 from .._resources import check_allocation
 from ..model import PreisachModel
+from . import drift as drift_mod
 from .candidates import Candidate
 from .data import History, Rec, state_options
 from .effects import OutputFeedback
@@ -108,7 +109,7 @@ class Context:
         *,
         max_fit_samples: int = 30_000,
         max_delay: float | None = None,
-        drift_smoothing: float = 0.1,
+        drift_smoothing: float = drift_mod.DRIFT_SMOOTHING,
         refit: bool = False,
         refit_levels: int = 21,
         alternations: int = 2,
@@ -126,9 +127,13 @@ class Context:
         self.y_half_span = max(0.5 * self.y_span, 1e-12)
         self.longest_duration = max(float(recs[i].t[-1] - recs[i].t[0]) for i in self.diag)
         self.max_delay = float(max_delay) if max_delay is not None else max(0.05, 10 * self.dt_min)
+        #: knot spacing (s) of each recording's drift curve until it is chosen by held-out
+        #: time (:meth:`choose_drift_roughness`, see :mod:`.drift`)
         self.drift_knot_spacing = float(np.clip(self.longest_duration / 6.0, 1.5, 10.0))
+        self.drift_spacing: dict[int, float] = {}
         for i, r in enumerate(recs):  # the dense drift bases (drift_basis): estimate first
-            cols = math.ceil(max(float(r.t[-1] - r.t[0]), 1e-9) / self.drift_knot_spacing) + 3
+            T = max(float(r.t[-1] - r.t[0]), 1e-9)
+            cols = math.ceil(T / drift_mod.spacing_options(T)[-1]) + 3  # the finest tried
             check_allocation(
                 8.0 * r.t.size * cols,
                 f"the drift basis of recording {i} ({r.t.size} samples x {cols} knots)",
@@ -468,27 +473,57 @@ class Context:
 
     # -- drift: a smooth function of time per recording ------------------------------------
     def drift_basis(self, i: int) -> Array:
-        """Cubic B-spline basis in time of recording ``i``, knots every ``drift_knot_spacing``."""
+        """Cubic B-spline basis in time of recording ``i`` (knots every :meth:`spacing_of`)."""
         if i not in self._basis:
             r = self.recs[i]
-            t = r.t - r.t[0]
-            T = max(float(t[-1]), 1e-9)
-            n_int = max(1, int(math.ceil(T / self.drift_knot_spacing)))
-            inner = np.linspace(0.0, T, n_int + 1)
-            k = 3
-            knots = np.concatenate([[0.0] * k, inner, [T] * k])
-            self._basis[i] = interpolate.BSpline.design_matrix(np.clip(t, 0, T), knots, k).toarray()
+            self._basis[i] = drift_mod.bspline_basis(r.t, self.spacing_of(i))
         return self._basis[i]
 
+    def spacing_of(self, i: int) -> float:
+        """Knot spacing (s) of recording ``i``'s drift: chosen, else the default."""
+        return self.drift_spacing.get(i, self.drift_knot_spacing)
+
+    def choose_drift_roughness(self) -> dict[int, float]:
+        """Choose every diagnosis recording's drift knot spacing by held-out time blocks.
+
+        On the residual of the base (refitted on all usable samples with the finest drift
+        projected off when the weights are refitted, else the given model) the drift curve
+        fitted on each recording's blocks of one parity predicts the other parity, for knot
+        spacings from one interval per recording down to :data:`.drift.MIN_SPACING` and
+        penalty weights :data:`.drift.SMOOTHINGS` (one weight for all recordings, which sets
+        :attr:`drift_smoothing`; :func:`.drift.choose_roughness`).
+        Called once before a drift is fitted; returns the spacings (s) per recording.
+        """
+        if self.drift_spacing:
+            return self.drift_spacing
+        train = [r.usable for r in self.recs]
+        chain = Chain(self.given)
+        if self.refit:  # weights refitted with the finest drift projected off, so that
+            # they do not absorb the drift the spacing is chosen for
+            self.drift_spacing = {
+                i: drift_mod.spacing_options(float(r.t[-1] - r.t[0]))[-1]
+                for i, r in enumerate(self.recs)
+            }
+            self._basis.clear()
+            chain = Chain(self.refit_base([], self.given, train, True))
+        recs = [self.recs[i] for i in self.diag]
+        lam, spacings, _ = drift_mod.choose_roughness(
+            [
+                (r.t, r.y - self.predict_one(i, chain), r.usable, r.fold)
+                for i, r in zip(self.diag, recs)
+            ]
+        )
+        self.drift_smoothing = lam
+        chosen = dict(zip(self.diag, spacings))
+        self.drift_spacing = chosen
+        self._basis.clear()
+        if self.refit:  # normal matrices with the old drift projections are stale
+            self._normal_cache = {k: v for k, v in self._normal_cache.items() if not k[3]}
+        return chosen
+
     def _drift_system(self, A: Array) -> tuple[Array, float]:
-        """Penalised normal matrix of a P-spline (second differences of the coefficients)."""
-        m = A.shape[1]
-        D = np.diff(np.eye(m), 2, axis=0) if m > 2 else np.zeros((0, m))
-        AtA = A.T @ A
-        lam = self.drift_smoothing * max(float(np.trace(AtA)) / m, 1e-300)
-        G = AtA + lam * (D.T @ D) + 1e-9 * lam * np.eye(m)
-        dof = float(np.trace(np.linalg.solve(G, AtA)))
-        return G, dof
+        """Penalised normal matrix of a P-spline (first differences of the coefficients)."""
+        return drift_mod.penalised_system(A, self.drift_smoothing)
 
     def drift_fit(self, i: int, res: Array, mask: Mask) -> Array:
         """P-spline coefficients of the drift of recording ``i`` fitted to ``res[mask]``."""

@@ -357,12 +357,16 @@ class SecondOrderMode(_LinearFilter):
 class PronyCreep(EffectBlock):
     """Creep: part of every output change arrives slowly (output side).
 
-    ``y = g x + sum_i c_i (L_i x - x)`` with first-order lags ``L_i`` of time constants
-    ``tau_i`` (exact under a zero-order hold).  After a step of size D the output first moves
-    by ``(g - sum c_i) D`` and then creeps by ``c_i D`` with time constant ``tau_i``; the
-    settled gain is ``g``.  A sum of lags one decade apart is the standard Prony-series
-    representation of the logarithmic creep of piezo actuators, so this form fits creep laws
-    of any shape on the time scales covered, not one particular law.
+    ``y = x_0 + g (x - x_0) + sum_i c_i (L_i x - x)`` with first-order lags ``L_i`` of time
+    constants ``tau_i`` (exact under a zero-order hold), ``x_0`` the input the block was
+    settled at (:meth:`reset`).  After a step of size D the output first moves by
+    ``(g - sum c_i) D`` and then creeps by ``c_i D`` with time constant ``tau_i``; the settled
+    gain of a move is ``g``.  The gain acts on the moves since the block was settled, not on
+    the absolute output: a recording starts settled wherever it starts, so a creep with
+    ``g != 1`` adds no offset to a recording that starts away from zero output.  A sum of
+    lags one decade apart is the standard Prony-series representation of the logarithmic
+    creep of piezo actuators, so this form fits creep laws of any shape on the time scales
+    covered, not one particular law.
 
     Parameters
     ----------
@@ -399,16 +403,18 @@ class PronyCreep(EffectBlock):
         # parallel first-order sections (a common denominator loses precision for slow poles)
         self._lags = [math.exp(-self.dt / t) for t in taus]
         self._z = np.zeros(len(taus))
+        self._x0 = 0.0
 
     def reset(self, x0: float) -> float:
-        """Every lag settled at ``x0``; returns ``gain * x0``."""
+        """Every lag settled at ``x0`` (the reference of the settled gain); returns ``x0``."""
         x0 = _finite(self.kind, "x0", x0)
         self._z = np.full(len(self._lags), x0)
-        return float(self._params["gain"] * x0)
+        self._x0 = x0
+        return x0
 
     def _run(self, x: Array) -> Array:
         p = self._params
-        y = p["gain"] * x
+        y = self._x0 + p["gain"] * (x - self._x0)
         for k, (e, c) in enumerate(zip(self._lags, p["weights"])):
             lag = _lag(x, e, self._z[k])
             if x.size:
