@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from preisach import PreisachModel, Recording
 from preisach.diagnose import diagnose
-from preisach.diagnose.drift import bspline_basis, choose_spacing, spacing_options
+from preisach.diagnose.drift import bspline_basis, choose_spacing, hold_check, spacing_options
 
 DT = 5e-3  # 200 Hz keeps the test fast; the physics is slower than 1 Hz
 NOISE = 1e-3
@@ -116,3 +116,25 @@ def test_roughness_is_chosen_on_held_out_time():
     none, _ = choose_spacing(t, noise, usable, parity)
     assert fast < slow and none == opts[0]
     assert bspline_basis(t, fast).shape[1] > bspline_basis(t, slow).shape[1]
+
+
+def test_holds_tell_a_drift_from_a_smoothed_staircase():
+    """During input holds a sensor drift moves the residual; a model's level errors do not."""
+    dt = 0.01
+    u = np.repeat([0.0, 3.0, -2.0, 5.0, 1.0, -4.0], 150)  # 1.5 s holds
+    t = np.arange(u.size) * dt
+    rng = np.random.default_rng(1)
+    noise = rng.normal(0.0, 1e-4, t.size)
+    curve = 1e-2 * np.sin(2 * np.pi * t / 6.0)  # what a fitted drift says
+    steps = np.repeat(rng.normal(0.0, 4e-3, 6), 150)  # level errors jumping at the steps
+    y = np.repeat([0.0, 2.0, -1.5, 3.5, 0.5, -3.0], 150)  # the output's levels
+    drift = hold_check([(u, curve + noise, curve, dt, y)], u_span=10.0)
+    stair = hold_check([(u, steps + noise, curve, dt, y)], u_span=10.0)
+    # a curve that moves on in the direction of each move into a hold follows the steps
+    moves = np.repeat(np.diff(np.r_[0.0, y[::150]]), 150)
+    creep_like = 1e-2 * moves * ((t % 1.5) / 1.5)
+    creep = hold_check([(u, creep_like + noise, creep_like, dt, y)], u_span=10.0)
+    assert creep.follows_t > 3.0 > abs(drift.follows_t)
+    assert drift.n_holds == stair.n_holds == 5  # the first hold has no move into it
+    assert not drift.refutes(1e-3) and stair.refutes(1e-3)
+    assert not stair.refutes(stair.drift_motion)  # within twice the noise: no verdict

@@ -13,30 +13,48 @@ few (a single interval per recording up to a knot every :data:`MIN_SPACING` seco
 one penalty weight for all recordings among :data:`SMOOTHINGS`, by cross-validation **held
 out in time**, the way the drift is scored: the curve fitted on the recording's blocks of one
 parity predicts the blocks of the other (a random split of the samples would let the curve
-follow anything slower than the sample rate).  The residual it is chosen on is the refitted classical base's, on the recording's usable
+follow anything slower than the sample rate).  The residual it is chosen on is the
+classical base's refitted with the finest drift projected off, on the recording's usable
 samples: like the initial history, one discrete choice per recording made with its
 measured output (:meth:`~preisach.diagnose.context.Context.choose_drift_roughness`).
+
+A drift is a function of time, so it must also show where the input cannot act: during
+input holds (:func:`hold_check`).  A curve that moves through the holds while the measured
+output stands still there is a model error smoothed into a curve (level errors that jump
+at the steps), not a sensor drift.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy import interpolate
 
+if TYPE_CHECKING:  # pragma: no cover
+    from .context import Chain, Context
+
 Array = NDArray[np.float64]
 
 __all__ = [
     "DRIFT_SMOOTHING",
+    "FOLLOWS_T_MAX",
+    "HOLD_MOTION_MIN",
+    "HOLD_SHARE_MIN",
     "MAX_INTERVALS",
     "MIN_SPACING",
     "ROUGHER_GAIN",
     "SMOOTHINGS",
+    "HoldCheck",
     "bspline_basis",
     "choose_roughness",
     "choose_spacing",
+    "drift_hold_check",
+    "drift_refuted_by_holds",
+    "hold_check",
     "penalised_system",
     "spacing_options",
 ]
@@ -188,3 +206,139 @@ def _smoothest_best(sse: dict[float, float]) -> tuple[float, dict[float, float]]
         if sse[s] < (1.0 - ROUGHER_GAIN) * sse[chosen]:
             chosen = s
     return chosen, sse
+
+
+# ----------------------------------------------------------------------------------------
+#: A fitted drift is refused when the measured residual moves, over the holds, by less than
+#: this share of what the drift curve claims there (upper 2-sigma bound).
+HOLD_SHARE_MIN: float = 0.5
+#: ... and only when the curve's RMS motion over the holds is at least this many noise sigmas.
+HOLD_MOTION_MIN: float = 2.0
+#: A drift curve whose motion in the holds follows the moves into them with this t or more
+#: follows the input steps (the creep rule's threshold, :data:`.rate_family.CREEP_MIN_T`).
+FOLLOWS_T_MAX: float = 2.0
+
+
+@dataclass(frozen=True)
+class HoldCheck:
+    """How the residual moves during input holds compared with a fitted drift curve.
+
+    Attributes
+    ----------
+    n_holds : int
+        Holds used (input within 0.1 % of its span for at least ``2.5 settle`` s).
+    share : float
+        Least-squares slope of the residual's late motion in the holds on the drift curve's
+        motion over the same stretches (1: the residual moves as the drift says).
+    se : float
+        Standard error of ``share``.
+    drift_motion : float
+        RMS of the drift curve's motion over those stretches (V).
+    follows_t : float
+        t-statistic of the drift curve's motion in the holds regressed on the measured output
+        move into each hold: a sensor drift has nothing to do with the moves' sizes and signs,
+        creep (or any input-driven after-effect) moves on in the direction of the move.
+
+    """
+
+    n_holds: int
+    share: float
+    se: float
+    drift_motion: float
+    follows_t: float = 0.0
+
+    def refutes(self, sigma: float) -> bool:
+        """Whether the holds show the drift is not there (the curve moves, the output not).
+
+        Only judged when the curve claims motion in the holds of at least twice the noise
+        ``sigma`` (V) and there are three holds or more: smaller motions are within what a
+        held-out curve may wander.
+        """
+        return (
+            self.n_holds >= 3
+            and self.drift_motion >= HOLD_MOTION_MIN * sigma
+            and self.share + 2.0 * self.se < HOLD_SHARE_MIN
+        )
+
+
+def hold_check(
+    recordings: list[tuple[Array, Array, Array, float, Array]], u_span: float, settle: float = 0.5
+) -> HoldCheck:
+    """Compare the residual's motion during holds with a drift curve's (model-free test).
+
+    ``recordings`` holds ``(u, res, drift, dt, y)`` per recording (V, V, V, s, V; ``y`` the
+    measured output, whose move into each hold the drift's motion must not follow).  While the input
+    is held the classical model (and any input-driven effect after ``settle`` seconds) stands
+    still, so the residual moves there only by what the sensor does: a sensor drift goes on
+    through the holds, while a curve smoothed through a staircase of level errors that
+    jump at the steps (a model error that follows the input) moves where the output does not.
+    Per hold the motion from ``settle`` after it began to its end is taken as the difference
+    of means over ``settle / 2`` windows, for the residual and for the drift curve.
+    """
+    tol = 1e-3 * u_span
+    dr, dd, mv = [], [], []
+    for u, res, drift, dt, y in recordings:
+        n_set = int(round(settle / dt))
+        h = max(1, n_set // 2)
+        still = np.abs(np.diff(u)) <= tol
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            if a < h or b - a + 1 < 2 * n_set + h or np.ptp(u[a : b + 1]) > tol:
+                continue
+            mv.append(float(np.mean(y[a + 1 : a + 1 + h]) - np.mean(y[a - h : a])))
+            early = slice(a + n_set, a + n_set + h)
+            late = slice(b + 1 - h, b + 1)
+            dr.append(float(np.mean(res[late]) - np.mean(res[early])))
+            dd.append(float(np.mean(drift[late]) - np.mean(drift[early])))
+    n = len(dd)
+    d, r = np.asarray(dd), np.asarray(dr)
+    dd2 = float(d @ d) if n else 0.0
+    if n < 2 or dd2 <= 0.0:
+        return HoldCheck(n, 1.0, math.inf, math.sqrt(dd2 / max(n, 1)))
+    share = float(d @ r) / dd2
+    e = r - share * d
+    se = math.sqrt(max(float(e @ e), 1e-300) / (n - 1) / dd2)
+    m = np.asarray(mv)
+    mm = float(m @ m)
+    follows = 0.0
+    if mm > 0.0:
+        k = float(m @ d) / mm
+        em = d - k * m
+        follows = k / math.sqrt(max(float(em @ em), 1e-300) / (n - 1) / mm)
+    return HoldCheck(n, share, se, math.sqrt(dd2 / n), follows)
+
+
+def drift_hold_check(ctx: Context, chain: Chain, settle: float = 0.25) -> HoldCheck:
+    """:func:`hold_check` of ``chain``'s drift curves (fitted on the usable samples).
+
+    ``settle`` 0.25 s: holds of 0.625 s and more count (step-and-hold experiments hold for
+    about a second or two).
+    """
+    data = []
+    for i in ctx.diag:
+        r = ctx.recs[i]
+        res = r.y - ctx.predict_one(i, chain)
+        d = ctx.drift_basis(i) @ ctx.drift_fit(i, res, r.usable)
+        data.append((r.u, res, d, r.dt, r.y))
+    return hold_check(data, ctx.u_span, settle)
+
+
+def drift_refuted_by_holds(ctx: Context, chains: list[Chain], sigma: float) -> str | None:
+    """Why the fitted drift of any of ``chains`` is not a drift by the holds (or None)."""
+    for ch in chains:
+        hc = drift_hold_check(ctx, ch)
+        if hc.n_holds >= 3 and hc.follows_t >= FOLLOWS_T_MAX:
+            return (
+                f"over {hc.n_holds} input holds the drift curve moves on in the direction of "
+                f"the output's move into each hold (t = {hc.follows_t:.2g} >= "
+                f"{FOLLOWS_T_MAX:g}): it follows the input steps, as creep does, not a sensor "
+                "drift"
+            )
+        if hc.refutes(sigma):
+            return (
+                f"the drift curve moves by {1e3 * hc.drift_motion:.2g} mV (RMS) over "
+                f"{hc.n_holds} input holds where the measured output moves by "
+                f"{100 * hc.share:.2g} ± {100 * hc.se:.2g} % of that: a model error that "
+                "changes with the input steps, smoothed into a curve, not a sensor drift"
+            )
+    return None

@@ -51,6 +51,7 @@ import numpy as np
 
 from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, Fold
+from .drift import drift_refuted_by_holds
 from .linear_block import rate_not_shown
 from .scoring import Score, classical_check, heldout_score, make_folds, sign_flip_p
 
@@ -431,6 +432,13 @@ def run_selection(
             alpha,
         ).items():
             ok[name], why[name] = False, why_not
+        # a drift must show where the input cannot act: the output moves through the holds
+        for name in scores:
+            if ok[name] and isinstance(remaining[name], DriftCandidate):
+                bad = drift_refuted_by_holds(ctx, new_chains[name], sigma)
+                if bad:
+                    ok[name] = False
+                    why[name] = f"implausible for its name: {bad}"
         quals = [n for n in scores if ok[n]]
         chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
         steps.append(
