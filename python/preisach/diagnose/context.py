@@ -153,6 +153,7 @@ class Context:
         self._basis: dict[int, Array] = {}
         self._states_seen: dict[int, Any] = {}
         self._anh: dict[Any, Any] = {}
+        self._options: dict[tuple[int, str], tuple[list[History], dict[int, Any]]] = {}
         self._problem: Problem | None = None
         self._last_problem: Any = None
         self.n_evals = 0
@@ -429,10 +430,7 @@ class Context:
         first = r.history
         assert first is not None
         within = first.kind in ("range", "session")
-        hists = [cur, *state_options(self.model, ue, "range" if within else first.kind)]
-        if r.session is not None and r.session is not cur:
-            hists.append(r.session)
-        states = [h.state(ue) for h in hists]
+        hists, states = self._history_options(i, ue, cur, "range" if within else first.kind)
         P_ref = _core.simulate(table, ue, states[0], "clamp")[0]
         kw = 1 + max(int(np.argmax(ue >= hi)), int(np.argmax(ue <= lo)))
         pre = np.ascontiguousarray(np.broadcast_to(ue[:kw], (len(states), kw)))
@@ -444,7 +442,10 @@ class Context:
         target = r.y - (self.output_side(i, P_ref, outs, st) - P_ref) if outs else r.y
         # residual e - d with d = P_state - P_ref: the prefix exactly, a constant after it
         head = m[:kw]
-        sse = np.sum(((target[:kw] - P_pre) ** 2)[:, head], axis=1)
+        d = P_pre[:, head]  # only the usable columns (the same values as squaring them all)
+        np.subtract(target[:kw][head], d, out=d)
+        np.square(d, out=d)
+        sse = d.sum(axis=1)
         tail = m.copy()
         tail[:kw] = False
         et = (target - P_ref)[tail]
@@ -470,6 +471,31 @@ class Context:
         if sse[k_best] >= sse[0] - 1e-9 * max(float(sse[0]), 1e-300):
             return cur
         return hists[k_best]
+
+    def _history_options(
+        self, i: int, ue: Array, cur: History, kind: str
+    ) -> tuple[list[History], list[Any]]:
+        """Return the histories ``_best_history`` chooses from (``cur`` first), and their states.
+
+        For the recording's own input (no input or feedback effect: most chains) the options
+        and their states are made once and kept: the same objects every time, so a history
+        chosen again keeps its regressor cached (:meth:`regressor` keys on its identity).
+        """
+        r = self.recs[i]
+        hit = self._options.get((i, kind)) if ue is r.u else None
+        if hit is None:
+            opts = state_options(self.model, ue, kind)
+            if r.session is not None:
+                opts.append(r.session)
+            hit = (opts, {id(h): h.state(ue) for h in opts})
+            if ue is r.u:
+                self._options[(i, kind)] = hit
+        opts, st = hit
+        # as many entries as built afresh: an option equal to ``cur`` stays (it did as a new
+        # object), the session's state only once
+        hists = [cur, *(h for h in opts if not (h is r.session and h is cur))]
+        states = [st[id(h)] if id(h) in st else h.state(ue) for h in hists]
+        return hists, states
 
     # -- drift: a smooth function of time per recording ------------------------------------
     def drift_basis(self, i: int) -> Array:
