@@ -173,8 +173,11 @@ def _bins(x: Array, n: int, log: bool) -> Array:
     return e
 
 
-def _eta2(r: Array, code: NDArray[np.integer[Any]], nb: int) -> float:
-    cnt = np.bincount(code, minlength=nb)
+def _eta2(
+    r: Array, code: NDArray[np.integer[Any]], nb: int, cnt: NDArray[np.integer[Any]] | None = None
+) -> float:
+    if cnt is None:  # the bin counts (the same for every permutation of r)
+        cnt = np.bincount(code, minlength=nb)
     s = np.bincount(code, weights=r, minlength=nb)
     tot = float(np.sum((r - r.mean()) ** 2))
     if tot <= 0:
@@ -206,15 +209,18 @@ def _covariate(
     eta = _eta2(r, code, nb) if r.size > 30 else 0.0
     # block permutation: shuffle residual blocks against the covariate
     ub, start = np.unique(blocks, return_index=True)
-    pieces = np.split(np.arange(r.size), start[1:]) if ub.size > 1 else [np.arange(r.size)]
+    first = start if ub.size > 1 else np.zeros(1, np.int64)
+    length = np.diff(np.append(first, r.size))
     exceed = 0
-    if len(pieces) >= 4 and eta > 0:
+    if first.size >= 4 and eta > 0:
+        pos = np.arange(r.size)
         for _ in range(n_perm):
-            perm = rng.permutation(len(pieces))
-            rr = np.concatenate([r[pieces[k]] for k in perm])
-            # lengths differ between blocks: align by truncating/cycling to r.size
-            rr = np.resize(rr, r.size)
-            if _eta2(rr, code, nb) >= eta:
+            perm = rng.permutation(first.size)
+            # the blocks in the permuted order: block k's samples first[k] .. first[k] + length[k]
+            n_k = length[perm]
+            ends = np.cumsum(n_k)
+            idx = pos + np.repeat(first[perm] - (ends - n_k), n_k)
+            if _eta2(r[idx], code, nb, cnt) >= eta:
                 exceed += 1
         p = (1 + exceed) / (1 + n_perm)
     else:
