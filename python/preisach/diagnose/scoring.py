@@ -199,26 +199,33 @@ def running_range_basis(u: Array, dt: float, knots: int, spacing: float) -> Arra
     With a classical Preisach model, two initial states of a recording give outputs that
     differ only by the relays the input has not yet reached: those with a threshold above
     the running maximum ``M(t)`` and below the running minimum ``m(t)``.  So the difference
-    is a function of ``(M(t), m(t))``, which moves along one monotone path: it changes only
-    when the running range ``M - m`` grows, and is an output offset once the input has
-    visited both its extremes.  The function is represented by hat functions of the time
-    ``tau(t)`` at which the running range last grew, on at most ``knots`` equal intervals
-    from 0 to the time the range reaches its end, none shorter than ``spacing`` seconds
-    (so that every hat is seen by training and held-out stretches alike).
+    is a function of ``(M(t), m(t))``, which moves along one monotone path: a function
+    ``h(s)`` of the running range ``s = M - m`` alone, an output offset once the input has
+    visited both its extremes.  ``h`` is represented by hat functions of ``s`` on at most
+    ``knots`` equal intervals of the final range; knots the input passes less than
+    ``spacing`` seconds after the previous one are dropped (so that every hat is seen by
+    training and held-out stretches alike).
     """
     s = np.maximum.accumulate(u) - np.minimum.accumulate(u)
-    grew = np.flatnonzero(np.diff(s) > 0) + 1
-    if grew.size == 0:
+    top = float(s[-1])
+    if top <= 0:
         return np.ones((u.size, 1))
-    last = np.zeros(u.size, np.int64)
-    last[grew] = grew
-    tau = np.maximum.accumulate(last) * dt
-    t_end = float(grew[-1]) * dt
-    k_int = int(max(1, min(knots, math.floor(t_end / max(spacing, 1e-12)))))
-    x = tau / t_end * k_int
-    k = np.minimum(np.floor(x).astype(np.int64), k_int - 1)
-    w = x - k
-    B = np.zeros((u.size, k_int + 1))
+    kept = [0.0]
+    t_prev = 0.0
+    for v in np.linspace(0.0, top, knots + 1)[1:]:
+        t_v = float(np.argmax(s >= v - 1e-12 * top)) * dt
+        if t_v - t_prev >= spacing or v == top:
+            if v == top and t_v - t_prev < spacing and len(kept) > 1:
+                kept[-1] = v
+            else:
+                kept.append(float(v))
+            t_prev = t_v
+    x = np.asarray(kept)
+    if x.size < 2:
+        return np.ones((u.size, 1))
+    k = np.clip(np.searchsorted(x, s, side="right") - 1, 0, x.size - 2)
+    w = np.clip((s - x[k]) / (x[k + 1] - x[k]), 0.0, 1.0)
+    B = np.zeros((u.size, x.size))
     rows = np.arange(u.size)
     B[rows, k] = 1.0 - w
     B[rows, k + 1] = w
