@@ -152,8 +152,14 @@ def test_real_piezo_recording():
     assert names[0] in ("rate_dependence", "delay", "non_congruence"), rep.summary()
     assert set(names[1:]) <= {"sensor_drift"}, rep.summary()
     first = {c["name"]: c for c in rep.candidates if c["step"] == 1}
-    for name in ("rate_dependence/input_lag", "non_congruence", "sensor_drift"):
+    for name in ("rate_dependence/input_lag", "non_congruence"):
         assert first[name]["decision"] == "qualifies", rep.summary()
+    # The drift alone lowers the held-out error, but a classical model with free initial
+    # states leaves it only 0.08 noise variances to add on interleaved stretches (the bar is
+    # 0.1), and the residual does not follow the time in the recording (p 0.6): so it may be
+    # refused as implausible for its name, and when it is, it says so.
+    drift = first["sensor_drift"]["decision"]
+    assert drift == "qualifies" or "classical Preisach model" in drift, rep.summary()
     assert rep.rmse_after < 0.5 * rep.rmse_before
     # what is left is consistent with the noise (it was 2.6 x with the lag and the moving
     # model diverging from the chosen initial states)
