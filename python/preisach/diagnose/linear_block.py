@@ -591,7 +591,6 @@ def rate_not_shown(
     n_params: dict[str, float],
     qualifies: dict[str, bool],
     p_value: Callable[[Array], float],
-    alpha: float,
 ) -> dict[str, str]:
     """Why qualifying rate-dependence forms are not named: linear dynamics explain as much.
 
@@ -599,12 +598,15 @@ def rate_not_shown(
     linear block *after* the hysteresis (a delay, a measurement lag, a mode) also makes the
     output trail the model more the faster the input moves, and a first-order lag in front of
     the relays differs from a lag or a delay behind them only at sharp reversals.  So a rate
-    form is named only when it predicts the held-out blocks significantly better (one-sided
-    sign-flip test at ``alpha``) than every linear-dynamics form of the same step with no more
-    parameters - whether or not that form qualified for its own name: if a time shift after
-    the hysteresis does as well, the loops' change with the rate is not shown, and the
-    simpler explanation (the hysteresis as identified) is preferred, or, when no linear form
-    qualifies either, nothing is named.
+    form is named only when it predicts the held-out blocks better than every linear-dynamics
+    form of the same step with no more parameters - whether or not that form qualified for
+    its own name: if a time shift after the hysteresis does as well or better, the loops'
+    change with the rate is not shown, and the simpler explanation (the hysteresis as
+    identified) is preferred, or, when no linear form qualifies either, nothing is named.
+    When the rate form is better but not significantly, it is named and the report says the
+    linear form is nearly as good.  (A
+    significance bar here named a 0.44 ms lag after the hysteresis for the rig's 0.83 ms lag
+    of the drive, which predicted better at p 0.04.)
 
     Parameters
     ----------
@@ -615,9 +617,8 @@ def rate_not_shown(
     n_params, qualifies : dict
         Candidate key -> number of fitted parameters; whether it qualifies so far.
     p_value : callable
-        One-sided p-value of a positive mean of block differences (the sign-flip test).
-    alpha : float
-        Level of the test.
+        One-sided p-value of a positive mean of block differences (the sign-flip test),
+        quoted in the reason.
 
     Returns
     -------
@@ -634,15 +635,15 @@ def rate_not_shown(
             continue
         best = min(rivals, key=lambda k: float(sse_blocks[k].sum()))
         p = p_value(sse_blocks[best] - sse_blocks[key])
-        if p >= alpha:
+        if float(sse_blocks[best].sum()) <= float(sse_blocks[key].sum()):
             ratio = math.sqrt(
                 float(sse_blocks[best].sum()) / max(float(sse_blocks[key].sum()), 1e-300)
             )
             out[key] = (
                 f"not shown to be rate dependence: a linear block after the hysteresis "
                 f"({best}, {n_params[best]:g} parameter(s)) predicts the held-out data as well "
-                f"or better (its held-out RMSE {ratio:.3g} x this one's, sign-flip p = {p:.2g} >= "
-                f"{alpha:g}); the same loop at several drive frequencies with sharp reversals "
+                f"or better (its held-out RMSE {ratio:.3g} x this one's, sign-flip p = {p:.2g}); "
+                f"the same loop at several drive frequencies with sharp reversals "
                 "separates them (a delay shifts the whole output in time, rate dependence "
                 "widens the loops with the rate)"
             )

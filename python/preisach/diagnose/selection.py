@@ -429,7 +429,6 @@ def run_selection(
             n_par,
             ok,
             lambda d: sign_flip_p(d, seed=len(steps)),
-            alpha,
         ).items():
             ok[name], why[name] = False, why_not
         # a drift must show where the input cannot act: the output moves through the holds
