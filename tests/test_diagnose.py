@@ -383,43 +383,6 @@ def test_diagnosis_limits_blas_to_one_thread(monkeypatch):
     assert after == before  # the caller's setting is back afterwards
 
 
-@pytest.mark.slow
-def test_heldout_outputs_do_not_enter_the_feedback_fit():
-    """Perturbing the measured output inside held-out blocks leaves the fitted values alone.
-
-    The non-congruence candidate is fitted in series-parallel form (the relays see the input
-    shifted by the feedback of the measured output); the held-out blocks' measurements must
-    not drive it, though the relays' memory carries their input into later training blocks.
-    """
-    from preisach.diagnose.candidates import NonCongruenceCandidate
-    from preisach.diagnose.context import Chain, Context
-    from preisach.diagnose.scoring import make_folds
-
-    case = make_case("non_congruence", seed=5, scale=0.2, effect_size=3.5)
-    model = case.identify()
-
-    def fit(recordings):
-        recs = prepare_recordings(model, recordings, identification=[case.identification])
-        ctx = Context(model, recs, refit=True)
-        fold = make_folds(recs, "blocks")[0]
-        cand = NonCongruenceCandidate()
-        cand.prepare(ctx)
-        base = ctx.refit_base([], ctx.given, fold.train, False)
-        chain = ctx.fit(cand, Chain(base), fold.train)
-        return chain.effects[-1].x, chain.base.theta, fold.test
-
-    x0, theta0, test = fit(case.recordings)
-    rng = np.random.default_rng(0)
-    moved = []
-    for r, m in zip(case.recordings, test):
-        y = r.y + np.where(m, rng.normal(0.0, 0.3, r.y.size), 0.0)  # 300 mV, held out only
-        moved.append(Recording.from_arrays(t=r.t, u=r.u, y=y, metadata=dict(r.metadata)))
-    assert sum(int(m.sum()) for m in test) > 1000
-    x1, theta1, _ = fit(moved)
-    np.testing.assert_allclose(x1, x0, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(theta1, theta0, rtol=1e-9, atol=1e-12)
-
-
 def test_own_generator_shapes_are_not_the_candidates():
     """The own truths' rate smoothing and feedback centre are random, not the candidates'."""
     from preisach.studies.diagnosis_cases import _truth_params
