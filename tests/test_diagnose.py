@@ -256,6 +256,28 @@ def test_noise_alone_gives_verdict_none():
     assert rep.rmse_after == pytest.approx(rep.rmse_before)
 
 
+def test_report_states_amounts_in_the_recordings_output_unit():
+    """A magnetometer's moment (A m^2) is reported in A m^2, never in mV; volts in mV."""
+    from preisach._display import diagnosis_html
+
+    m, recs = _recs_with("none")
+    moment = [
+        Recording.from_arrays(t=r.t, u=r.u, y=1.05 * r.y + 0.02, output_units="A m^2") for r in recs
+    ]
+    rep = diagnose(m, moment, candidates=["gain_offset"], progress=False)
+    assert rep.verdict == "gain_offset" and rep.unit == "A m^2"
+    text, html = rep.summary(), diagnosis_html(rep, figure=False)
+    assert "A m^2 from the model's" in rep.effects[0].statement  # the offset, in its unit
+    assert "mV" not in text and "mV" not in html, text
+    assert f"{rep.rmse_before:.4g} A m^2 (given model)" in text
+    assert "held-out RMSE (A m^2)" in html
+    assert rep.details()["unit"] == "A m^2"
+    volts = [Recording.from_arrays(t=r.t, u=r.u, y=r.y) for r in moment]
+    assert "mV (given model)" in diagnose(m, volts[:1], candidates=["gain_offset"]).summary()
+    with pytest.raises(ValueError, match="different units"):
+        diagnose(m, [moment[0], volts[1]], candidates=["gain_offset"])
+
+
 def test_effect_outside_every_candidate_is_unexplained_not_none():
     """A 37 Hz square-wave pickup (5 x the noise) that no candidate offered can fit."""
     m, recs = _recs_with("none")

@@ -498,14 +498,14 @@ def _param(p: dict[str, Any]) -> str:
 
 def diagnosis_html(report: Any, *, figure: bool = True) -> str:
     """HTML of a DiagnosisReport: verdict, effects with uncertainties, held-out RMSE, the figure."""
-    mv = 1e3
+    mv, unit = report.display_unit()  # volts are shown in mV
     verdict_style = _GOOD if report.verdict == "none" else _BAD
     parts = [
         f"<div {_BOX}><div style='font-size: 1.15em'>verdict: "
         f"<span {verdict_style}>{_e(report.verdict)}</span></div>",
-        f"<div>RMSE {_g(mv * report.rmse_before)} mV (given model) &rarr; "
-        f"{_g(mv * report.rmse_after)} mV (augmented, held-out); noise "
-        f"{_g(mv * report.noise_sigma, '.3g')} mV; {report.seconds:.1f} s</div>",
+        f"<div>RMSE {_g(mv * report.rmse_before)} {_e(unit)} (given model) &rarr; "
+        f"{_g(mv * report.rmse_after)} {_e(unit)} (augmented, held-out); noise "
+        f"{_g(mv * report.noise_sigma, '.3g')} {_e(unit)}; {report.seconds:.1f} s</div>",
         _warnings(report.notes),
     ]
     if report.effects:
@@ -518,7 +518,12 @@ def diagnosis_html(report: Any, *, figure: bool = True) -> str:
             )  # fmt: skip
         parts.append(
             _table(
-                ["effect", "what it does", "parameters (value &plusmn; std)", "held-out RMSE (mV)"],
+                [
+                    "effect",
+                    "what it does",
+                    "parameters (value &plusmn; std)",
+                    f"held-out RMSE ({_e(unit)})",
+                ],
                 rows,
                 numeric_from=3,
                 caption="kept effects, most important first",
@@ -541,7 +546,15 @@ def diagnosis_html(report: Any, *, figure: bool = True) -> str:
         parts.append(
             "<details><summary>candidates (held-out RMSE per selection step)</summary>"
             + _table(
-                ["step", "candidate", "held-out RMSE (mV)", "gain %", "p", "k", "decision"],
+                [
+                    "step",
+                    "candidate",
+                    f"held-out RMSE ({_e(unit)})",
+                    "gain %",
+                    "p",
+                    "k",
+                    "decision",
+                ],
                 rows,
                 numeric_from=2,
             )

@@ -45,6 +45,7 @@ from .effects import (
     SplineFeedback,
 )
 from .linear_block import Classification, classify_problem
+from .locate import display_unit
 
 if TYPE_CHECKING:  # pragma: no cover
     from .context import Chain, Context, Stage
@@ -632,9 +633,10 @@ class GainOffsetCandidate(Candidate):
         return {"gain": float(x[0]), "offset": float(x[1])}
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        ku, unit = display_unit(ctx.output_unit)
         return (
             f"the output scale differs by {_pm(100 * (x[0] - 1), 100 * _sd(cov, 0), '.2g')} % "
-            f"and its zero by {_pm(1e3 * x[1], 1e3 * _sd(cov, 1), '.3g')} mV from the model's: "
+            f"and its zero by {_pm(ku * x[1], ku * _sd(cov, 1), '.3g')} {unit} from the model's: "
             "recalibrate the "
             "sensor or re-identify the model"
         )
@@ -959,9 +961,10 @@ class DriftCandidate(Candidate):
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         sp = sorted(ctx.spacing_of(i) for i in ctx.diag)
         knots = f"{sp[0]:.2g} s" if sp[-1] <= 1.01 * sp[0] else f"{sp[0]:.2g}-{sp[-1]:.2g} s"
+        ku, unit = display_unit(ctx.output_unit)
         return (
             f"the sensor offset drifts with time, unrelated to the input: mean rate "
-            f"{_pm(1e3 * x[0], 1e3 * _sd(cov, 0))} mV/s (a smooth curve per recording, knots "
+            f"{_pm(ku * x[0], ku * _sd(cov, 0))} {unit}/s (a smooth curve per recording, knots "
             f"every {knots} as chosen on held-out time); re-zero the sensor before each run, "
             "control its temperature, or detrend the recordings"
         )

@@ -115,9 +115,12 @@ class Context:
         alternations: int = 2,
         levels: Array | None = None,
         ridge: float = 1e-7,
+        output_unit: str = "V",
     ) -> None:
         self.model = model
         self.recs = recs
+        #: the recordings' output unit: the candidates' statements state amounts in it
+        self.output_unit = str(output_unit)
         self.diag = [i for i, r in enumerate(recs) if not r.ident]
         self.dt_min = min(r.dt for r in recs)
         self.u_span = model.u_max - model.u_min

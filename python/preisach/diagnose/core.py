@@ -21,9 +21,16 @@ from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
-from .locate import analyse_residuals
+from .locate import amount_text, analyse_residuals, display_unit
 from .registry import CANDIDATES
-from .report import DiagnosisReport, EffectReport, candidate_table, unexplained_of, where_of
+from .report import (
+    DiagnosisReport,
+    EffectReport,
+    candidate_table,
+    output_unit,
+    unexplained_of,
+    where_of,
+)
 from .scoring import sign_flip_p
 from .selection import GridChoice, Selection, choose_grid, resolution_check, run_selection
 
@@ -263,6 +270,7 @@ def diagnose(
         else _load(identification)
     )
     recs_in = _drop_identification(_load(recordings), ident_in)
+    unit = output_unit(recs_in)  # the unit every output amount in the report is in
     cands = _resolve_candidates(candidates)
     do_refit = bool(ident_in) if refit is None else bool(refit)
     progress, bar = line_progress(progress, "diagnose", unit="step")
@@ -275,13 +283,20 @@ def diagnose(
         block_length=block_length,
         identification=ident_in,
     )
-    ctx = Context(model, recs, max_delay=max_delay, refit=do_refit, refit_levels=refit_levels)
+    ctx = Context(
+        model,
+        recs,
+        max_delay=max_delay,
+        refit=do_refit,
+        refit_levels=refit_levels,
+        output_unit=unit,
+    )
     # 2. the baseline: the given model's predictions and the noise level
     base = _baseline(ctx, sigma)
     if progress:
         progress(
             f"{len(ctx.diag)} recordings ({len(recs) - len(ctx.diag)} for identification), "
-            f"{sum(r.n for r in recs)} samples; noise {1e3 * base.sigma:.3g} mV"
+            f"{sum(r.n for r in recs)} samples; noise {amount_text(base.sigma, unit, '.3g')}"
         )
     # 3. the refitted base: the model's grid, or a finer or firmer one when it fails
     grid: dict[str, Any] | None = None
@@ -290,7 +305,13 @@ def diagnose(
         gc = choose_grid(
             ctx,
             lambda lv, ridge: Context(
-                model, recs, max_delay=max_delay, refit=True, levels=lv, ridge=ridge
+                model,
+                recs,
+                max_delay=max_delay,
+                refit=True,
+                levels=lv,
+                ridge=ridge,
+                output_unit=unit,
             ),
             sigma=base.sigma,
             noise_ratio=noise_ratio,
@@ -465,8 +486,10 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
         st = steps[k]
         sc = st.scores[key]
         gain = st.gains[key]
+        ku = display_unit(ctx.output_unit)[0]
         ev = (
-            f"held-out RMSE {1e3 * st.baseline.rmse:.4g} -> {1e3 * sc.rmse:.4g} mV "
+            f"held-out RMSE {ku * st.baseline.rmse:.4g} -> "
+            f"{amount_text(sc.rmse, ctx.output_unit, '.4g')} "
             f"({100 * gain:.0f} % lower); explains {st.explained[key]:.3g} x the noise variance; "
             f"sign-flip p = {st.p_values[key]:.2g} "
             f"over {sc.n_blocks.size} held-out blocks; {st.n_params[key]:.3g} fitted parameters"
@@ -629,7 +652,7 @@ def _report(
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "
-            f"{1e3 * sel.refit_baseline.rmse:.4g} mV"
+            f"{amount_text(sel.refit_baseline.rmse, ctx.output_unit, '.4g')}"
         )
     return DiagnosisReport(
         verdict=verdict,
@@ -646,6 +669,7 @@ def _report(
         noise_test=noise_test,
         unexplained=unexplained,
         base_grid=grid,
+        unit=ctx.output_unit,
         _recs=dsub,
         _pred_before=[base.pred[i] for i in diag],
         _pred_after=[pred_after[i] for i in diag],

@@ -34,6 +34,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import interpolate
 
+from .locate import amount_text
+
 if TYPE_CHECKING:  # pragma: no cover
     from .context import Chain, Context
 
@@ -336,8 +338,8 @@ def drift_refuted_by_holds(ctx: Context, chains: list[Chain], sigma: float) -> s
             )
         if hc.refutes(sigma):
             return (
-                f"the drift curve moves by {1e3 * hc.drift_motion:.2g} mV (RMS) over "
-                f"{hc.n_holds} input holds where the measured output moves by "
+                f"the drift curve moves by {amount_text(hc.drift_motion, ctx.output_unit, '.2g')} "
+                f"(RMS) over {hc.n_holds} input holds where the measured output moves by "
                 f"{100 * hc.share:.2g} ± {100 * hc.se:.2g} % of that: a model error that "
                 "changes with the input steps, smoothed into a curve, not a sensor drift"
             )

@@ -30,7 +30,14 @@ from numpy.typing import NDArray
 from scipy import signal
 from scipy.integrate import trapezoid
 
-__all__ = ["Covariate", "ResidualAnalysis", "analyse_residuals", "motion_features"]
+__all__ = [
+    "Covariate",
+    "ResidualAnalysis",
+    "amount_text",
+    "analyse_residuals",
+    "display_unit",
+    "motion_features",
+]
 
 Array = NDArray[np.float64]
 
@@ -41,6 +48,22 @@ BANDS_HZ: tuple[tuple[float, float], ...] = (
     (20.0, 60.0),
     (60.0, math.inf),
 )
+
+
+def display_unit(unit: str = "V") -> tuple[float, str]:
+    """Factor and name to show output amounts in: millivolts for volts, else the unit itself.
+
+    Diagnosis computes in the recordings' output unit (``Recording.metadata["output_units"]``,
+    ``"V"`` by default); a report on another quantity (a magnetometer's moment in ``A m^2``,
+    say) states it in that unit, unscaled.
+    """
+    return (1e3, "mV") if unit == "V" else (1.0, unit)
+
+
+def amount_text(value: float, unit: str, fmt: str = ".3g") -> str:
+    """``value`` (in ``unit``) as text with its display unit: ``0.0123, "V"`` -> ``12.3 mV``."""
+    k, name = display_unit(unit)
+    return f"{k * value:{fmt}} {name}"
 
 
 @dataclass
@@ -73,7 +96,7 @@ class Covariate:
 
 @dataclass
 class ResidualAnalysis:
-    """Where the residual lives and what it follows (all voltages in V, times in s)."""
+    """Where the residual lives and what it follows (outputs in the recordings' unit; s)."""
 
     noise_sigma: float
     rms: float
@@ -88,14 +111,15 @@ class ResidualAnalysis:
         sig = [c for c in self.covariates.values() if c.p_value < alpha]
         return sorted(sig, key=lambda c: -c.eta2)[:k]
 
-    def summary(self) -> list[str]:
-        """Readable lines."""
+    def summary(self, unit: str = "V") -> list[str]:
+        """Readable lines; amounts in ``unit`` (the output's: volts are shown in mV)."""
+        k, name = display_unit(unit)
         lines = [
-            f"residual RMS {1e3 * self.rms:.4g} mV, noise {1e3 * self.noise_sigma:.3g} mV "
+            f"residual RMS {k * self.rms:.4g} {name}, noise {k * self.noise_sigma:.3g} {name} "
             f"(ratio {self.rms / self.noise_sigma if self.noise_sigma > 0 else float('nan'):.3g})"
         ]
         for p in sorted(self.per_recording, key=lambda d: -d["rms"]):
-            lines.append(f"  {p['name']}: RMS {1e3 * p['rms']:.4g} mV over {p['duration']:.3g} s")
+            lines.append(f"  {p['name']}: RMS {k * p['rms']:.4g} {name} over {p['duration']:.3g} s")
         for c in sorted(self.covariates.values(), key=lambda c: -c.eta2):
             lines.append(f"  follows {c.name}: eta^2 = {c.eta2:.3f} (p = {c.p_value:.3g})")
         b = self.spectrum.get("bands", [])

@@ -55,6 +55,7 @@ from .. import _core
 from ..model import PreisachModel, State
 from .candidates import Candidate, ParamSpec, _pm, _sd
 from .effects import EFFECT_TYPES, EffectBlock, _finite, _positive
+from .locate import amount_text
 
 if TYPE_CHECKING:  # pragma: no cover
     from .context import Base, Chain, Context, Stage
@@ -659,11 +660,14 @@ class RateFamilyCandidate(Candidate):
         slope = float(np.polyfit(kn, w, 1)[0])
         w0 = self.base_width(ctx)
         trend = "widens" if w[-1] >= 0 else "narrows"
+        unit = ctx.output_unit
+        per_rate = f"{1e6 * slope:.3g} µV" if unit == "V" else amount_text(slope, unit)
         return (
             f"hysteresis loops change with the input rate: the major loop {trend} by "
-            f"{1e3 * abs(w[-1]):.3g} mV (mean width, {100 * abs(w[-1]) / max(w0, 1e-300):.2g} % "
+            f"{amount_text(abs(w[-1]), unit)} (mean width, "
+            f"{100 * abs(w[-1]) / max(w0, 1e-300):.2g} % "
             f"of the model's) from {kn[0]:.3g} V/s to {kn[-1]:.3g} V/s, about "
-            f"{1e6 * slope:.3g} µV per V/s of input rate (rate filtered over "
+            f"{per_rate} per V/s of input rate (rate filtered over "
             f"{_pm(tau_ms, e)} ms; the effect ends within ~{3 * tau_ms:.2g} ms of the input "
             "stopping); identify a rate-dependent model (preisach identify --method rate) from "
             "sweeps at several rates or keep the rate-dependence block"

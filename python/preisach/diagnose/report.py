@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Union, cast
 
@@ -14,7 +15,7 @@ from scipy import signal
 
 from .._io import write_text
 from .augmented import AugmentedModel
-from .locate import ResidualAnalysis, motion_features
+from .locate import ResidualAnalysis, display_unit, motion_features
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -22,7 +23,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .data import Rec
     from .selection import StepResult
 
-__all__ = ["DiagnosisReport", "EffectReport"]
+__all__ = ["DiagnosisReport", "EffectReport", "output_unit"]
 
 Array = NDArray[np.float64]
 PathLike = Union[str, "os.PathLike[str]"]
@@ -115,6 +116,10 @@ class DiagnosisReport:
         ``heldout_rmse`` per grid tried (V), ``ratio`` (held-out RMSE over the noise, per
         grid), ``p_value`` (sign-flip test of the finer grid over held-out blocks) and
         ``statement``; else None.
+    unit : str
+        The recordings' output unit (their ``output_units`` metadata, ``"V"`` by default): the
+        unit of every output amount above.  The text, the HTML and the figure show volts in
+        mV and any other unit as it is.
 
     """
 
@@ -132,14 +137,19 @@ class DiagnosisReport:
     noise_test: dict[str, Any] = field(default_factory=dict)
     unexplained: dict[str, Any] | None = None
     base_grid: dict[str, Any] | None = None
+    unit: str = "V"
     _recs: list[Any] = field(default_factory=list, repr=False)
     _pred_before: list[Array] = field(default_factory=list, repr=False)
     _pred_after: list[Array] = field(default_factory=list, repr=False)
     _res_after: list[Array] = field(default_factory=list, repr=False)
 
     # ------------------------------------------------------------------ output
+    def display_unit(self) -> tuple[float, str]:
+        """Return the factor and name the output amounts are shown in (mV for volts)."""
+        return display_unit(self.unit)
+
     def to_dict(self) -> dict[str, Any]:
-        """Return the report in the issue's JSON schema (volts)."""
+        """Return the report in the issue's JSON schema (the output's unit, volts by default)."""
         return {
             "verdict": self.verdict,
             "effects": [e.to_dict() for e in self.effects],
@@ -171,17 +181,19 @@ class DiagnosisReport:
                 "model": self.model.describe(),
                 "seconds": self.seconds,
                 "notes": self.notes,
+                "unit": self.unit,
             }
         )
         return cast("dict[str, Any]", _jsonable(d))
 
     def summary(self) -> str:
         """Readable text: verdict, statements, evidence, candidate table, residual analysis."""
-        mv = 1e3
+        k, unit = self.display_unit()
         lines = [
             f"verdict: {self.verdict}",
-            f"RMSE {mv * self.rmse_before:.4g} mV (given model) -> {mv * self.rmse_after:.4g} mV "
-            f"(augmented, held-out); noise {mv * self.noise_sigma:.3g} mV",
+            f"RMSE {k * self.rmse_before:.4g} {unit} (given model) -> "
+            f"{k * self.rmse_after:.4g} {unit} (augmented, held-out); "
+            f"noise {k * self.noise_sigma:.3g} {unit}",
         ]
         if self.noise_test:
             nt = self.noise_test
@@ -199,12 +211,12 @@ class DiagnosisReport:
         lines.append("candidates (held-out RMSE per selection step):")
         for c in self.candidates:
             lines.append(
-                f"  step {c['step']}: {c['name']:<21} {mv * c['heldout_rmse']:8.4g} mV  "
+                f"  step {c['step']}: {c['name']:<21} {k * c['heldout_rmse']:8.4g} {unit}  "
                 f"gain {100 * c['gain']:6.1f} %  p {c['p_value']:.3g}  k {c['n_params']:>3}  "
                 f"{'KEPT' if c['kept'] else c['decision']}"
             )
         lines.append("where the given model's residual lives:")
-        lines += ["  " + s for s in self.before.summary()]
+        lines += ["  " + s for s in self.before.summary(self.unit)]
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
@@ -222,6 +234,21 @@ class DiagnosisReport:
         from ..plotting.diagnose import plot_diagnosis
 
         return plot_diagnosis(self, fig=fig)
+
+
+def output_unit(recordings: Sequence[Any]) -> str:
+    """Return the recordings' common output unit (``output_units`` metadata, else ``"V"``).
+
+    Raises
+    ------
+    ValueError
+        When the recordings name different output units: one diagnosis compares their
+        outputs with one model's.
+    """
+    units = sorted({str(r.metadata.get("output_units", "V")) for r in recordings})
+    if len(units) > 1:
+        raise ValueError(f"recordings: the outputs are in different units ({', '.join(units)})")
+    return units[0] if units else "V"
 
 
 def _jsonable(x: Any) -> Any:

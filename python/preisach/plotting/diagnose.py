@@ -25,7 +25,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
     if fig is None:
         fig = Figure(figsize=(14, 12))
     axs = fig.subplots(3, 2)
-    mv = 1e3
+    mv, unit = report.display_unit()  # volts are drawn in mV
     recs = report._recs
     # (a) residual against time, recordings side by side
     ax = axs[0, 0]
@@ -45,7 +45,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
         ax.text(offset, 1.0, f" {r.name}", transform=ax.get_xaxis_transform(), va="top", fontsize=7)
         offset = t[-1] + 0.5
     ax.set_xlabel("time, recordings in sequence (s)")
-    ax.set_ylabel("residual y_meas - y_sim (mV)")
+    ax.set_ylabel(f"residual y_meas - y_sim ({unit})")
     ax.set_title("where in time: residual per recording")
     ax.legend(loc="lower right", fontsize=7)
     # (b) spectra
@@ -69,7 +69,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
         )
     ax.set_xscale("log")
     ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("PSD (V²/Hz)")
+    ax.set_ylabel(f"PSD ({report.unit}²/Hz)")
     ax.set_title("which band: Welch spectra")
     ax.legend(fontsize=7)
     # (c) residual map over input level and direction
@@ -87,7 +87,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
         )
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("input u (V)")
-    ax.set_ylabel("mean residual (mV)")
+    ax.set_ylabel(f"mean residual ({unit})")
     ax.set_title("which input range and direction: residual map")
     ax.legend(fontsize=6, ncol=2)
     # (d) what the residual follows
@@ -139,7 +139,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
         ax2.set_ylabel("input u (V)", color="C0")
         ax.set_title(f"before/after, 1 s of {r.name}")
         ax.set_xlabel("time (s)")
-        ax.set_ylabel("residual (mV)")
+        ax.set_ylabel(f"residual ({unit})")
         ax.legend(fontsize=7, loc="lower left")
     # (f) candidates
     ax = axs[2, 1]
@@ -164,7 +164,7 @@ def plot_diagnosis(report: DiagnosisReport, *, fig: Figure | None = None) -> Fig
         ax.set_xticklabels(
             [c["name"].replace("_", "\n").replace("/", "/\n") for c in step1], fontsize=6
         )
-        ax.set_ylabel("held-out RMSE (mV)")
+        ax.set_ylabel(f"held-out RMSE ({unit})")
         ax.set_title(f"candidates, first step (verdict: {report.verdict})")
         ax.legend(fontsize=7)
     fig.tight_layout()
