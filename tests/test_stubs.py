@@ -10,16 +10,27 @@ STUB = Path(__file__).resolve().parents[1] / "python" / "preisach" / "_core.pyi"
 
 
 def _stub_names():
+    """Top-level names, and each class's members counting those its stub bases declare.
+
+    A member a class inherits at runtime is written once, in its base (``Block``,
+    ``DaqDevice``, ...): :func:`test_stub_bases_are_the_runtime_bases` keeps that inheritance
+    the binding's own.
+    """
     tree = ast.parse(STUB.read_text())
-    top, members = set(), {}
+    top, own, bases = set(), {}, {}
     for node in tree.body:
         if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
             top.add(node.name)
         if isinstance(node, ast.ClassDef):
-            members[node.name] = {
+            own[node.name] = {
                 n.name for n in node.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))
             }
-    return top, members
+            bases[node.name] = [b.id for b in node.bases if isinstance(b, ast.Name)]
+
+    def members(name):
+        return own[name].union(*(members(b) for b in bases[name] if b in own))
+
+    return top, {name: members(name) for name in own}, bases
 
 
 def _public(obj):
@@ -27,14 +38,23 @@ def _public(obj):
 
 
 def test_stub_names_every_module_export():
-    top, _ = _stub_names()
+    top, _, _ = _stub_names()
     exported = _public(core)
     assert exported - top == set(), f"missing from _core.pyi: {sorted(exported - top)}"
     assert top - exported == set(), f"in _core.pyi but not in _core: {sorted(top - exported)}"
 
 
+def test_stub_bases_are_the_runtime_bases():
+    _, _, bases = _stub_names()
+    for name, stubbed in bases.items():
+        runtime = [
+            b.__name__ for b in getattr(core, name).__bases__ if b.__module__ == core.__name__
+        ]
+        assert stubbed == runtime, f"{name}: stub bases {stubbed} != runtime bases {runtime}"
+
+
 def test_stub_names_every_class_member():
-    _, members = _stub_names()
+    _, members, _ = _stub_names()
     for name, stubbed in members.items():
         cls = getattr(core, name)
         public = _public(cls)
