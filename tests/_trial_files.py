@@ -25,6 +25,16 @@ channel = 1
 range = [-5.0, 5.0]
 """
 
+
+def sim_head(name: str | None = None, **device: str | int) -> str:
+    """:data:`SIM_HEAD` with a trial ``name`` and further ``[device]`` keys (``model=...``)."""
+    head = SIM_HEAD if name is None else SIM_HEAD.replace("[trial]", f'[trial]\nname = "{name}"')
+    keys = "".join(
+        f"\n{k} = {v!r}" if isinstance(v, int) else f'\n{k} = "{v}"' for k, v in device.items()
+    )
+    return head.replace('kind = "sim"', 'kind = "sim"' + keys)
+
+
 #: A ``[safety]`` section that tolerates any run of missed deadlines (a loaded test machine).
 ANY_MISSED = """[safety]
 max_consecutive_missed = -1

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import preisach
 import pytest
-from _trial_files import ANY_MISSED, SIM_HEAD, start_realtime_run, wait_for_rows
+from _trial_files import ANY_MISSED, SIM_HEAD, sim_head, start_realtime_run, wait_for_rows
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from preisach import PreisachModel, Recording
@@ -205,8 +205,7 @@ def test_trial_check_rejects_what_run_rejects(tmp_path):
 
     p = tmp_path / "t.toml"
     p.write_text(
-        HEAD.replace('kind = "sim"', 'kind = "sim"\nmodel = "ss15-3hz"')
-        + '[[steps]]\nkind = "hold"\nduration = 0.1\n'
+        sim_head(model="ss15-3hz") + ANY_MISSED + '[[steps]]\nkind = "hold"\nduration = 0.1\n'
     )
     with pytest.raises(TrialFileError, match="ss15-3hz.*neither a built-in model"):
         check_trial(p)

@@ -4,37 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _trial_files import sim_head
 from preisach import PreisachModel, Recording
 from preisach.errors import TrialFileError
 from preisach.trials import check_trial, run_trial_file
 
-TRIAL = """
-[trial]
-name = "track"
-sample_time = 0.001
-
-[device]
-kind = "sim"
-model = "ss15-1hz"
-seed = 2
-
-[output]
-name = "V_in"
-channel = 1
-range = [-10.0, 10.0]
-calibration = "ss15-b"
-
-[input]
-name = "V_out"
-channel = 1
-range = [-5.0, 5.0]
-
+TRIAL = (
+    sim_head("track", model="ss15-1hz", seed=2)
+    + """
 [[steps]]
 kind = "track"
 feedforward = "{model}"
 reference = "{ref}"
 state = "{state}"
 """
+)
 
 
 @pytest.fixture
