@@ -50,6 +50,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .candidates import Candidate, DriftCandidate
+from .congruency import CURVE_BEYOND_CLASSICAL, output_curve_check
 from .context import Chain, Context, Fold
 from .drift import drift_refuted_by_holds
 from .linear_block import rate_not_shown
@@ -279,7 +280,23 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
             f"held-out stretches (bound {noise_ratio:g} x): the residual is not the base's "
             "resolution"
         )
-    return {**chk.as_dict(), "consistent": ok, "statement": statement}
+    curve = None
+    if ok:  # loops that scale with the output level are no classical model's (congruency.py)
+        cc = output_curve_check(ctx, sigma)
+        curve = cc.as_dict()
+        if cc.gain >= CURVE_BEYOND_CLASSICAL and cc.p < 0.01:
+            ok = False
+            statement = (
+                f"a classical Preisach model on a {chk.levels}-level grid (smooth density) "
+                f"predicts interleaved {1e3 * chk.stretch:.0f} ms held-out stretches at "
+                f"{chk.ratio:.3g} x the noise (bound {noise_ratio:g} x), but a static curve of "
+                f"the output adds {cc.gain:.2g} x the noise variance to it (p = {cc.p:.2g}; bar "
+                f"{CURVE_BEYOND_CLASSICAL:g}): loop heights change with the output level, which "
+                "no classical Preisach model does - non-congruence (e.g. a product model) or a "
+                "sensor reading through a nonlinear curve; the same minor loop at several "
+                "output levels, read by a calibrated sensor, separates them"
+            )
+    return {**chk.as_dict(), "consistent": ok, "statement": statement, "output_curve": curve}
 
 
 def run_selection(

@@ -1,0 +1,68 @@
+"""Loops whose height changes with the output level are not the base's resolution.
+
+The device is written from a physical description, not from the check's form: a piezo
+whose domains stiffen as the strain grows (Kadar's product model: every output increment of
+a classical Preisach model scaled by ``1 / (1 + s y)``), so minor
+loops between the same drive levels shrink at high strain; 1 mV sensor noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from preisach import PreisachModel, Recording, _core
+from preisach.diagnose.congruency import CURVE_BEYOND_CLASSICAL
+from preisach.diagnose.context import Context
+from preisach.diagnose.data import prepare_recordings
+from preisach.diagnose.selection import resolution_check
+from preisach.identify import identify_fod
+from preisach.waveforms import fod_sweep, legs
+
+
+def _device(u: np.ndarray, stiffening: float, seed: int) -> np.ndarray:
+    m = PreisachModel.builtin("ss15-1hz", levels=21)
+    x = _core.simulate(m.table, u, m.negative_saturation(), "clamp")[0]
+    # dy = dx / (1 + s (y - x0)) integrated from the first sample
+    z = 2.0 * stiffening * (x - x[0])
+    y = x[0] + (z / (np.sqrt(1.0 + z) + 1.0) / stiffening if stiffening else x - x[0])
+    return y + np.random.default_rng(seed).normal(0.0, 1e-3, u.size)
+
+
+def _context(stiffening: float) -> tuple[Context, float]:
+    dt = 2e-3
+    sweep = fod_sweep(np.linspace(-100.0, 100.0, 11), frequency=2.0, sample_time=dt).u
+    ident = Recording.from_arrays(
+        t=np.arange(sweep.size) * dt, u=sweep, y=_device(sweep, stiffening, 0)
+    )
+    pts = [-100.0]
+    for direction in (1, -1):  # the same 16 V loop at five drive offsets, both ways
+        for o in np.linspace(-60.0, 60.0, 5)[::direction]:
+            pts += [float(o), float(o + 16.0 * direction), float(o)]
+        pts.append(100.0 if direction > 0 else -100.0)
+    u = np.concatenate([np.full(25, -100.0), legs(pts, 0.1, sample_time=dt).u])
+    rec = Recording.from_arrays(t=np.arange(u.size) * dt, u=u, y=_device(u, stiffening, 1))
+    model = identify_fod(ident, 11).model
+    ctx = Context(model, prepare_recordings(model, [rec], identification=[ident]), refit=True)
+    return ctx, 1e-3
+
+
+@pytest.mark.parametrize("stiffening", [0.0, 0.2])
+def test_output_curve_beyond_the_fine_classical_model(stiffening):
+    """A product-model device is not consistent with the fine classical model; a classical one is.
+
+    Fails when the resolution check stops seeing loops that scale with the output (the
+    curve's gain and its significance) or starts calling a congruent device's residual more
+    than the base's resolution.
+    """
+    ctx, sigma = _context(stiffening)
+    chk = resolution_check(ctx, sigma, noise_ratio=2.0)
+    curve = chk["output_curve"]
+    assert curve is not None, chk["statement"]  # the fine classical model is within the bound
+    if stiffening:
+        assert curve["gain_noise_variances"] >= CURVE_BEYOND_CLASSICAL, curve
+        assert curve["p"] < 0.01, curve
+        assert not chk["consistent"], chk["statement"]
+        assert "output level" in chk["statement"]
+    else:
+        assert curve["gain_noise_variances"] < CURVE_BEYOND_CLASSICAL, curve
+        assert chk["consistent"], chk["statement"]
