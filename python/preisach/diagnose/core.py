@@ -21,6 +21,7 @@ from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
+from .holds import hold_motion, hold_pieces
 from .locate import amount_text, analyse_residuals, display_unit
 from .registry import CANDIDATES
 from .report import (
@@ -496,6 +497,9 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
         )
         if cand.variant:
             ev += f"; form: {cand.variant.replace('_', ' ')}"
+        held, qual = st.holds.get(key), key in st.by_holds
+        if held is not None:
+            ev += ("; qualified on the holds: " if qual else "; ") + held.statement()
         others = sorted(
             (n for n in st.scores if by_key[n].name != name and st.gains[n] > 0),
             key=lambda n: -st.gains[n],
@@ -549,6 +553,7 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
                 parameters=params,
                 heldout_rmse_before=st.baseline.rmse,
                 heldout_rmse_after=sc.rmse,
+                holds=None if held is None else {**held.as_dict(), "qualified": qual},
             )
         )
     return _Final(names, chain, effects, drift_eff, ambiguous)
@@ -628,10 +633,18 @@ def _report(
     if do_refit and not (names or consistent):
         check = resolution_check(ctx, sigma_hat, noise_ratio)
         consistent = bool(check["consistent"])
+    # nothing kept: the holds must be still too (no classical model moves while the input
+    # holds, whatever its resolution; motion there is evidence however small the RMSE)
+    motion = None
+    if not names:
+        motion = hold_motion(sel.steps[-1].baseline, hold_pieces(ctx), sigma_hat)
+        if motion is not None and motion.moves:
+            consistent = False
     noise_test: dict[str, Any] = {
         "ratio": ratio,
         "threshold": float(noise_ratio),
         "classical": check,
+        "holds": None if motion is None else motion.as_dict(),
         "consistent": consistent,
     }
     unexplained = None
@@ -639,6 +652,9 @@ def _report(
         unexplained = unexplained_of(
             dsub, [res_after[i] for i in diag], after_a, ctx.u_span, ratio, noise_ratio
         )
+        if motion is not None and motion.moves:
+            unexplained["holds"] = motion.as_dict()
+            unexplained["statement"] += f"; {motion.statement()}"
     verdict = names[0] if names else ("none" if consistent else "unexplained")
     aug.metadata["diagnosis"]["verdict"] = verdict
     notes = [

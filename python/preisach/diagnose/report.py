@@ -48,6 +48,11 @@ class EffectReport:
         ``{name: {"value", "std", "unit"}}``; ``std`` is the standard uncertainty.
     heldout_rmse_before, heldout_rmse_after : float
         Held-out RMSE (V) of the chain without and with this effect.
+    holds : dict or None
+        For an effect that acts in time (creep, sensor drift) on recordings that hold the
+        input: its held-out evidence within the holds, each hold's mean removed
+        (:class:`~preisach.diagnose.holds.HoldEvidence`; ``qualified`` when the holds alone
+        made it qualify).
 
     """
 
@@ -58,10 +63,11 @@ class EffectReport:
     parameters: dict[str, dict[str, Any]]
     heldout_rmse_before: float
     heldout_rmse_after: float
+    holds: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Return the issue's schema for one effect (the statement leads the evidence)."""
-        return {
+        out = {
             "name": self.name,
             "evidence": f"{self.statement}. {self.evidence}",
             "where": self.where,
@@ -69,6 +75,9 @@ class EffectReport:
             "heldout_rmse_before": self.heldout_rmse_before,
             "heldout_rmse_after": self.heldout_rmse_after,
         }
+        if self.holds is not None:
+            out["holds"] = self.holds
+        return out
 
 
 @dataclass

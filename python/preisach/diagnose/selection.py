@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -53,6 +53,7 @@ from .candidates import Candidate, DriftCandidate
 from .congruency import CURVE_BEYOND_CLASSICAL, output_curve_check
 from .context import Chain, Context, Fold
 from .drift import drift_refuted_by_holds
+from .holds import HoldEvidence, hold_evidence, hold_pieces
 from .linear_block import rate_not_shown
 from .scoring import Score, classical_check, heldout_score, make_folds, sign_flip_p
 
@@ -60,6 +61,9 @@ from .scoring import Score, classical_check, heldout_score, make_folds, sign_fli
 FINE_LEVELS = 41
 #: the firmer ridge (relative to the mean diagonal of the normal matrix) those bases get
 FIRM_RIDGE = 1e-4
+#: the effects that act in time while the input holds, judged on the holds too
+#: (:mod:`preisach.diagnose.holds`)
+HOLD_EFFECTS = frozenset({"creep", "sensor_drift"})
 #: least held-out mean-square error (noise variances) a sensor drift must remove from the fine
 #: classical model with free initial states of the resolution check to be named
 DRIFT_BEYOND_CLASSICAL = 0.1
@@ -81,6 +85,11 @@ class StepResult:
     reasons: dict[str, str]
     chosen: str | None
     chains: dict[str, list[Chain]]
+    #: within-hold evidence of the effects that act in time (creep, sensor drift), when the
+    #: recordings hold the input (:mod:`preisach.diagnose.holds`)
+    holds: dict[str, HoldEvidence] = field(default_factory=dict)
+    #: the candidates that qualified on the holds alone
+    by_holds: set[str] = field(default_factory=set)
 
 
 @dataclass
@@ -345,6 +354,7 @@ def run_selection(
     kept: list[str] = []
     drift = False
     drift_check: tuple[float, float] | None = None
+    pieces = hold_pieces(ctx)
     steps: list[StepResult] = []
     remaining = {c.key: c for c in candidates}
     while remaining and len(kept) < max_effects:
@@ -375,6 +385,8 @@ def run_selection(
                     f"({_time.perf_counter() - t0:.2f} s)"
                 )
         pv, gains, expl, ok, why = {}, {}, {}, {}, {}
+        held: dict[str, HoldEvidence] = {}
+        by_holds: set[str] = set()
         for name, sc in scores.items():
             d = baseline.sse_blocks - sc.sse_blocks
             pv[name] = sign_flip_p(d, seed=len(steps))
@@ -394,6 +406,14 @@ def run_selection(
                 reasons.append(
                     f"not significant over held-out blocks (p = {pv[name]:.3g} >= {alpha:g})"
                 )
+            # an effect that acts in time shows where the base cannot err: within the holds
+            if remaining[name].name in HOLD_EFFECTS:
+                ev = hold_evidence(baseline, sc, pieces, sigma, seed=len(steps))
+                if ev is not None:
+                    held[name] = ev
+                    if reasons and gains[name] > 0 and ev.qualifies(alpha):
+                        reasons = []
+                        by_holds.add(name)
             if not reasons:  # only the qualifying fits are checked against their names
                 bad = _implausible(ctx, remaining[name], new_chains[name])
                 if bad:
@@ -425,7 +445,12 @@ def run_selection(
         # the input has visited its extremes, a slow wander a drift spline fits too) must
         # gain from the drift on interleaved held-out stretches (see _drift_beyond_classical)
         for name in scores:
-            if ok[name] and isinstance(remaining[name], DriftCandidate) and ctx.refit:
+            if (
+                ok[name]
+                and isinstance(remaining[name], DriftCandidate)
+                and ctx.refit
+                and name not in by_holds  # the holds are already beyond any classical model
+            ):
                 if drift_check is None:
                     drift_check = _drift_beyond_classical(ctx, sigma, seed=len(steps))
                 gain_c, p_c = drift_check
@@ -457,8 +482,31 @@ def run_selection(
                     why[name] = f"implausible for its name: {bad}"
         quals = [n for n in scores if ok[n]]
         chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
+        if progress:
+            for name, ev in held.items():
+                progress(
+                    f"  {name} in the holds: {ev.base_ratio:.3g} -> {ev.ratio:.3g} x the noise "
+                    f"over {ev.n_pieces} pieces, p = {ev.p_value:.2g}"
+                    + (" (qualifies on them)" if name in by_holds else "")
+                )
+        for name in by_holds:
+            if ok[name]:
+                why[name] = f"qualifies on the holds: {held[name].statement()}"
         steps.append(
-            StepResult(baseline, scores, n_par, pv, gains, expl, ok, why, chosen, new_chains)
+            StepResult(
+                baseline,
+                scores,
+                n_par,
+                pv,
+                gains,
+                expl,
+                ok,
+                why,
+                chosen,
+                new_chains,
+                held,
+                by_holds,
+            )
         )
         if chosen is None:
             break
