@@ -62,11 +62,12 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
         "unexplained",
         "base_grid",
     }
-    assert set(d["noise_test"]) == {"ratio", "threshold", "classical", "consistent"}
+    assert set(d["noise_test"]) == {"ratio", "threshold", "classical", "holds", "consistent"}
+    assert d["noise_test"]["holds"] is None  # an effect was kept: no hold test
     assert d["noise_test"]["classical"] is None  # an effect was kept: no resolution check
     assert d["verdict"] == "delay"
     for e in d["effects"]:
-        assert set(e) == {
+        assert set(e) - {"holds"} == {
             "name",
             "evidence",
             "where",

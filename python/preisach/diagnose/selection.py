@@ -64,6 +64,9 @@ FIRM_RIDGE = 1e-4
 #: the effects that act in time while the input holds, judged on the holds too
 #: (:mod:`preisach.diagnose.holds`)
 HOLD_EFFECTS = frozenset({"creep", "sensor_drift"})
+#: the effects whose ring after a step goes on in the holds: their evidence there stands for
+#: their name when the general linear block does not show them (its taps end too soon)
+RING_EFFECTS = frozenset({"structural_resonance"})
 #: least held-out mean-square error (noise variances) a sensor drift must remove from the fine
 #: classical model with free initial states of the resolution check to be named
 DRIFT_BEYOND_CLASSICAL = 0.1
@@ -387,6 +390,7 @@ def run_selection(
         pv, gains, expl, ok, why = {}, {}, {}, {}, {}
         held: dict[str, HoldEvidence] = {}
         by_holds: set[str] = set()
+        why_ring: dict[str, str] = {}
         for name, sc in scores.items():
             d = baseline.sse_blocks - sc.sse_blocks
             pv[name] = sign_flip_p(d, seed=len(steps))
@@ -407,19 +411,29 @@ def run_selection(
                     f"not significant over held-out blocks (p = {pv[name]:.3g} >= {alpha:g})"
                 )
             # an effect that acts in time shows where the base cannot err: within the holds
-            if remaining[name].name in HOLD_EFFECTS:
+            if remaining[name].name in HOLD_EFFECTS | RING_EFFECTS:
                 ev = hold_evidence(baseline, sc, pieces, sigma, seed=len(steps))
                 if ev is not None:
                     held[name] = ev
-                    if reasons and gains[name] > 0 and ev.qualifies(alpha):
+                    if (
+                        reasons
+                        and remaining[name].name in HOLD_EFFECTS
+                        and gains[name] > 0
+                        and ev.qualifies(alpha)
+                    ):
                         reasons = []
                         by_holds.add(name)
             if not reasons:  # only the qualifying fits are checked against their names
                 bad = _implausible(ctx, remaining[name], new_chains[name])
-                if bad:
+                ring = held.get(name) if remaining[name].name in RING_EFFECTS else None
+                if bad and ring is not None and ring.qualifies(alpha):
+                    # a ring the general block (tens of ms of taps) missed goes on in the
+                    # holds, where no delay or lag acts: the mode's name stands
+                    why_ring[name] = f"{bad}; but {ring.statement()}"
+                elif bad:
                     reasons.append(f"implausible for its name: {bad}")
             ok[name] = not reasons
-            why[name] = "; ".join(reasons) if reasons else "qualifies"
+            why[name] = "; ".join(reasons) if reasons else why_ring.get(name, "qualifies")
         # a drift that follows the input steps is not named while an input-driven
         # explanation (creep) qualifies too and explains the held-out data about as well:
         # a drift significantly better than every qualifying creep (paired sign-flip test
