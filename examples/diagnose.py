@@ -30,7 +30,7 @@ from preisach.recording import Recording
 from preisach.studies.diagnosis_cases import make_case
 
 kind = sys.argv[1] if len(sys.argv) > 1 else "delay"
-make_case(kind, seed=31, scale=0.3, effect_size=3.5).save("case")
+make_case(kind, seed=31, scale=0.2, effect_size=3.5).save("case")
 truth = json.loads(Path("case/truth.json").read_text())
 print(f"wrote case/ ({truth['kind']}, {len(truth['recordings'])} experiments)")
 
