@@ -119,6 +119,7 @@ def _outcome(rep: dict[str, Any]) -> dict[str, Any]:
         "effects": [e["name"] for e in effs],
         "gain": (1 - first["heldout_rmse_after"] / first["heldout_rmse_before"] if first else 0.0),
         "total_gain": 1 - rep["rmse_after"] / rep["rmse_before"] if effs else 0.0,
+        "hold_gain": ((first.get("holds") or {}).get("gain") if first else None),
         "ratio": rep.get("noise_test", {}).get("ratio"),
         "unexplained": (rep.get("unexplained") or {}).get("statement"),
     }
@@ -203,9 +204,11 @@ def summarise(results: list[dict[str, Any]], name: str) -> list[str]:
         p = r["passes"][name]
         mark = "ok " if right(r["kinds"], p["verdict"]) else "-- "
         ratio = "-" if p["ratio"] is None else f"{p['ratio']:.2f}"
+        hg = p.get("hold_gain")
+        held = "" if hg is None else f" (within the holds {100 * hg:.0f} %)"
         lines.append(
             f"  {mark}{r['case']}: {'+'.join(r['kinds']):<32} -> {p['verdict']:<21} "
-            f"[{', '.join(p['effects'])}] gain {100 * p['gain']:.0f} %, ratio {ratio}"
+            f"[{', '.join(p['effects'])}] gain {100 * p['gain']:.0f} %{held}, ratio {ratio}"
         )
     return lines
 
