@@ -44,7 +44,7 @@ from preisach.verify import verify
 # end.
 
 # %%
-case = make_case("rate_dependence", seed=31, scale=0.3, effect_size=3.5, generator="rig")
+case = make_case("rate_dependence", seed=31, scale=0.2, effect_size=3.5, generator="rig")
 for r in case.recordings:
     print(f"{r.metadata['experiment']:<12} {r.duration:5.2f} s, "
           f"u in [{r.u.min():7.2f}, {r.u.max():6.2f}] V")
@@ -143,7 +143,7 @@ print(report.to_json()[:400], "...")
 from preisach.studies.diagnosis_cases import physical_checks
 
 for kind in ("none", "creep"):
-    c = make_case(kind, seed=7, scale=0.3, effect_size=3.5, generator="own")
+    c = make_case(kind, seed=7, scale=0.2, effect_size=3.5, generator="own")
     rep = diagnose(c.identify(), c.recordings, identification=c.identification)
     print(f"truth {kind:<6} -> verdict {rep.verdict:<6}  held-out RMSE "
           f"{rep.rmse_before * 1e3:.2f} mV (given model) -> {rep.rmse_after * 1e3:.2f} mV "
