@@ -27,9 +27,7 @@ def main() -> None:
         t0 = time.perf_counter()
         model = PreisachModel.load(models / case / "m.npz")
         exps = [str(p) for p in sorted((out / case).glob("exp*.csv"))]
-        recs = prepare_recordings(
-            model, _load(exps), identification=list(model.identification)
-        )
+        recs = prepare_recordings(model, _load(exps), identification=list(model.identification))
         ctx = Context(model, recs, refit=True)
         sigma = _baseline(ctx, None).sigma
         c = output_curve_check(ctx, sigma)
