@@ -82,6 +82,7 @@ def feedback_case():
     return case, case.identify()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "candidate, alternations",
     [("NonCongruenceCandidate", 2), ("SplineFeedbackCandidate", 1)],
