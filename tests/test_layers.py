@@ -164,12 +164,18 @@ def _targets(module: str, is_package: bool, node: ast.Import | ast.ImportFrom) -
     return out
 
 
+_PARSED: dict[str, list[tuple[str, str, int]]] = {}
+
+
 def package_imports(module: str, source: str | None = None) -> list[tuple[str, str, int]]:
     """``(target, kind, line)`` of every import of the package in ``module``.
 
     ``kind`` is ``"module"`` (runs at import), ``"typing"`` (under ``if TYPE_CHECKING:``) or
-    ``"lazy"`` (inside a function).
+    ``"lazy"`` (inside a function).  The package's own files are parsed once per session (the
+    layer and the cycle checks read the same imports); a given ``source`` is always parsed.
     """
+    if source is None and module in _PARSED:
+        return _PARSED[module]
     path = MODULES[module]
     is_package = path.name == "__init__.py"
     found: list[tuple[str, str, int]] = []
@@ -187,6 +193,8 @@ def package_imports(module: str, source: str | None = None) -> list[tuple[str, s
                 visit(child, k)
 
     visit(ast.parse(path.read_text(encoding="utf-8") if source is None else source), "module")
+    if source is None:
+        _PARSED[module] = found
     return found
 
 
