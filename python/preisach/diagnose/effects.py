@@ -459,8 +459,8 @@ class FractionalDelay(EffectBlock):
     def _run(self, x: Array) -> Array:
         full = np.concatenate([self._buf, x])
         k0 = self._buf.size  # index of x[0] in full
-        idx = np.arange(x.size) + k0 - self._n
-        y = (1 - self._frac) * full[idx] + self._frac * full[idx - 1]
+        s = k0 - self._n  # full[s + t] is x delayed by n samples (slices, not an index array)
+        y = (1 - self._frac) * full[s : s + x.size] + self._frac * full[s - 1 : s - 1 + x.size]
         self._buf = full[-(self._n + 1) :]
         return np.asarray(y, dtype=float)
 

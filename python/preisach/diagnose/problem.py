@@ -92,6 +92,13 @@ class Problem:
         # base with the previous alternation's feedback loop closed (``reference``), or
         # without feedback in the first one.
         self.feedback_from: dict[int, Array] | None = None
+        # a feedback candidate leaves the input blocks' output alone: the Preisach input (and
+        # the stage of output blocks that read it) is the same for every parameter vector
+        self.u_in: dict[int, Array] = {}
+        self._folds: dict[tuple[int, bool], NDArray[np.int32]] = {}
+        self._prev: dict[int, Array] = {}  # the feedback signals one sample late
+        if cand.side == "feedback" and not any(e.cand.side == "feedback" for e in effs):
+            self.u_in = {i: ctx.preisach_input(i, self.ins) for i, m in enumerate(train) if m.any()}
         if profile:
             # regressors at the reference base; fixed for output-side candidates
             self.ref_stage = {}
@@ -150,17 +157,20 @@ class Problem:
             r = ctx.recs[i]
             fb = None if self.feedback_from is None else self.feedback_from[i]
             # the reference base's output is needed only to linearise output blocks
-            ue_open = None if outs else ctx.relay_input(i, effs, fb)
+            if outs:
+                ue_open = None
+            elif fb is not None and i in self.u_in:  # relay_input with the input blocks run once
+                if i not in self._prev:
+                    self._prev[i] = ctx.previous(fb)
+                ue_open = ctx._fed_back(i, self.u_in[i], effs[-1], fb, self._prev[i])
+            else:
+                ue_open = ctx.relay_input(i, effs, fb)
             if ue_open is None:
                 P, ue, st = ctx.stage(i, self.fixed.base, effs, fb)
                 target = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y
             else:
                 ue, target = ue_open, r.y
-            if coarse:
-                fold = np.full(r.n, -1, np.int32)
-                fold[self.coarse[i]] = 0
-            else:
-                fold = np.where(self.train[i], 0, -1).astype(np.int32)
+            fold = self._fold(i, coarse)
             s0 = ctx.state(i, self.fixed.base, ue)
             gram, b, *_ = _core.normal_equations(ctx.levels, ue, target, s0, fold, 1, "clamp")
             return gram[0], b[0], ue
@@ -184,6 +194,19 @@ class Problem:
             dtype=float,
         )
 
+    def _fold(self, i: int, coarse: bool) -> NDArray[np.int32]:
+        """Fold labels of recording ``i`` for the normal equations (0: a row; -1: state only)."""
+        key = (i, coarse)
+        fold = self._folds.get(key)
+        if fold is None:
+            if coarse:
+                fold = np.full(self.ctx.recs[i].n, -1, np.int32)
+                fold[self.coarse[i]] = 0
+            else:
+                fold = np.where(self.train[i], 0, -1).astype(np.int32)
+            self._folds[key] = fold
+        return fold
+
     def _profiled_predict(self, x: Array, coarse: bool = False) -> dict[int, Array]:
         theta = self.theta(x, coarse)
         if self.cand.side != "output" and self._last_u is not None:
@@ -203,8 +226,11 @@ class Problem:
             if self.cand.side == "output":
                 st = self.ref_stage[i][1]
             else:  # the Preisach input with the candidate; the reference table for A(u)
-                effs = [*self.ins, FittedEffect(self.cand, x)]
-                st = Stage(i, self.ctx.preisach_input(i, effs), self.ctx.table(self.fixed.base))
+                if i in self.u_in:
+                    u_in = self.u_in[i]
+                else:
+                    u_in = self.ctx.preisach_input(i, [*self.ins, FittedEffect(self.cand, x)])
+                st = Stage(i, u_in, self.ctx.table(self.fixed.base))
             out[i] = self._outputs(i, x, P, st)
         return out
 
