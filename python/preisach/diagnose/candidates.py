@@ -762,7 +762,7 @@ def _scan_gain(
     prob = ctx._problem
     if prob is None:
         return [make(a, yc) for a, yc in pts[:1]]
-    sse = np.array([prob.sse(prob.clip(make(a, yc)), coarse=True) for a, yc in pts])
+    sse = np.array(prob.sse_many([prob.clip(make(a, yc)) for a, yc in pts], coarse=True))
     m = fine.size
     return [make(*pts[int(np.argmin(sse[k * m : (k + 1) * m])) + k * m]) for k in range(5)]
 

@@ -777,7 +777,7 @@ class Context:
         prob = self._problem
         if prob is None or not starts:
             return starts[:top]
-        sse = [prob.sse(prob.clip(s), coarse=True) for s in starts]
+        sse = prob.sse_many([prob.clip(s) for s in starts], coarse=True)
         order = np.argsort(sse)
         return [prob.clip(starts[k]) for k in order[:top]]
 

@@ -9,6 +9,8 @@ projected off each recording's drift P-spline.
 from __future__ import annotations
 
 import math
+import os
+from collections.abc import Sequence
 from typing import Any, Callable, cast
 
 import numpy as np
@@ -133,21 +135,32 @@ class Problem:
         normal equations over every fourth training sample only (the quick evaluations of a
         start-value scan).
         """
+        return self._theta(x, coarse, False)[0]
+
+    def _theta(
+        self, x: Array, coarse: bool, serial: bool
+    ) -> tuple[Array, dict[int, Array] | None, dict[int, sp.csr_matrix] | None]:
+        """:meth:`theta`, with the relay inputs or regressors it used (nothing stored).
+
+        ``serial``: the recordings one after the other in this thread (when the evaluations
+        themselves run in parallel, :meth:`sse_many`), else one per core.
+        """
         ctx = self.ctx
         if self.cand.side == "output":
             Rs = self.R
             targets = {}
             for i, (P, st) in self.ref_stage.items():
                 targets[i] = ctx.recs[i].y - (self._outputs(i, x, P, st) - P)
-            return ctx.solve_theta(Rs, targets, self.train, self.drift, self.cacheable, self.factor)
+            theta = ctx.solve_theta(
+                Rs, targets, self.train, self.drift, self.cacheable, self.factor
+            )
+            return theta, None, None
         effs = [*self.fixed.effects, FittedEffect(self.cand, x)]
         if self.drift:  # the drift projection needs the regressors themselves
             Rs, targets, _ = ctx.linearised_targets(
                 effs, self.fixed.base, self.train, self.feedback_from
             )
-            self._last_R = Rs
-            self._last_u = None
-            return ctx.solve_theta(Rs, targets, self.train, self.drift, False)
+            return ctx.solve_theta(Rs, targets, self.train, self.drift, False), None, Rs
         # normal equations straight from the C++ regressor, without forming it
         outs = [e for e in effs if e.cand.side == "output"]
         p = ctx.n_theta
@@ -180,19 +193,20 @@ class Problem:
         todo = [i for i, m in enumerate(self.train) if m.any()]
         N = np.zeros((p, p))
         rhs = np.zeros(p)
-        self._last_u = {}
-        for i, (gram, b, ue) in zip(todo, _pool().map(one, todo)):
+        last_u = {}
+        for i, (gram, b, ue) in zip(todo, (map if serial else _pool().map)(one, todo)):
             N += gram
             rhs += b
-            self._last_u[i] = ue
+            last_u[i] = ue
         lam = ctx.ridge * max(float(np.trace(N)) / p, 1e-300)
         N[np.diag_indices(p)] += lam
         rhs += lam * ctx.theta0
         # Cholesky without the condition estimate of linalg.solve (the ridge keeps N definite)
-        return np.asarray(
+        theta = np.asarray(
             linalg.cho_solve(linalg.cho_factor(N, check_finite=False), rhs, check_finite=False),
             dtype=float,
         )
+        return theta, last_u, None
 
     def _fold(self, i: int, coarse: bool) -> NDArray[np.int32]:
         """Fold labels of recording ``i`` for the normal equations (0: a row; -1: state only)."""
@@ -207,19 +221,22 @@ class Problem:
             self._folds[key] = fold
         return fold
 
-    def _profiled_predict(self, x: Array, coarse: bool = False) -> dict[int, Array]:
-        theta = self.theta(x, coarse)
-        if self.cand.side != "output" and self._last_u is not None:
+    def _profiled_predict(
+        self, x: Array, coarse: bool = False, serial: bool = False
+    ) -> dict[int, Array]:
+        theta, last_u, last_R = self._theta(x, coarse, serial)
+        if self.cand.side != "output" and last_u is not None:
             table = self.ctx.table(Base(theta))
-            ctx, last = self.ctx, self._last_u
+            ctx, last = self.ctx, last_u
 
             def sim(i: int) -> Array:
                 s0 = ctx.state(i, self.fixed.base, last[i])
                 return cast(Array, _core.simulate(table, last[i], s0, "clamp")[0])
 
-            Ps = dict(zip(last, _pool().map(sim, last)))
+            Ps = dict(zip(last, (map if serial else _pool().map)(sim, last)))
         else:
-            Rs = self.R if self.cand.side == "output" else self._last_R
+            Rs = self.R if self.cand.side == "output" else last_R
+            assert Rs is not None
             Ps = {i: R @ theta for i, R in Rs.items()}
         out = {}
         for i, P in Ps.items():
@@ -280,15 +297,19 @@ class Problem:
             y, _, st = ctx.stage(i, self.fixed.base, [*self.ins, FittedEffect(self.cand, x)])
         return ctx.output_side(i, y, self.down, st)
 
-    def residuals(self, x: Array, coarse: bool = False) -> Array:
-        """Training residuals (V) at ``x``, drift projected off; ``coarse``: every fourth."""
+    def residuals(self, x: Array, coarse: bool = False, serial: bool = False) -> Array:
+        """Training residuals (V) at ``x``, drift projected off; ``coarse``: every fourth.
+
+        ``serial``: the recordings one after the other in this thread (see :meth:`sse_many`).
+        """
         self.ctx.n_evals += 1
         parts = []
         todo = [i for i, ix in enumerate(self.idx) if ix.size]
         if self.profile:
-            preds = self._profiled_predict(x, coarse)
+            preds = self._profiled_predict(x, coarse, serial)
         else:  # independent recordings, C++ simulations that release the GIL: one per core
-            preds = dict(zip(todo, _pool().map(lambda i: self.predict(i, x), todo)))
+            run = map if serial else _pool().map
+            preds = dict(zip(todo, run(lambda i: self.predict(i, x), todo)))
         for i in todo:
             ix = self.idx[i]
             res = self.ctx.recs[i].y[ix] - preds[i][ix]
@@ -302,7 +323,21 @@ class Problem:
             parts.append(pen)
         return np.concatenate(parts) if parts else np.zeros(0)
 
-    def sse(self, x: Array, coarse: bool = False) -> float:
+    def sse(self, x: Array, coarse: bool = False, serial: bool = False) -> float:
         """Training sum of squared residuals (V^2) at ``x``."""
-        r = self.residuals(x, coarse)
+        r = self.residuals(x, coarse, serial)
         return float(r @ r)
+
+    def sse_many(self, xs: Sequence[Array], coarse: bool = False) -> list[float]:
+        """:meth:`sse` of every vector in ``xs`` (a start-value scan), the same numbers.
+
+        The evaluations run one per core, each with its recordings one after the other: one
+        evaluation's Python (output blocks, residuals) then overlaps another's C++ loops,
+        which release the GIL, where the recordings of a single evaluation spread over the
+        cores leave a core idle while the first thread runs Python.
+        """
+        xs = list(xs)
+        if len(xs) < 2 or (os.cpu_count() or 1) < 2:
+            return [self.sse(x, coarse) for x in xs]
+        self.ctx.table(self.fixed.base)  # built once, before the threads share it
+        return list(_pool().map(lambda x: self.sse(x, coarse, serial=True), xs))
