@@ -39,19 +39,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
 from scipy import linalg
 
-from .. import _core
 from .context import Chain, Context
 from .scoring import (
     CHECK_LEVELS,
     CHECK_SMOOTHING,
     CHECK_STATE_KNOTS,
     CHECK_STRETCH,
-    density_roughness,
-    running_range_basis,
+    fine_system,
     sign_flip_p,
 )
 
@@ -107,85 +104,28 @@ def output_curve_check(
     predict the stretches in between (two folds).  ``sigma`` is the noise (V).
     """
     t0 = time.perf_counter()
-    n = int(levels)
-    lv = np.linspace(ctx.model.u_min, ctx.model.u_max, n)
-    p = n * (n - 1) // 2 + 1
     pw = tuple(int(k) for k in powers)
-    mc = len(pw)
     sims = ctx.predict(Chain(ctx.given))
-    bases = [running_range_basis(r.u, r.dt, state_knots, 4.0 * stretch) for r in ctx.recs]
-    offs = np.cumsum([0] + [B.shape[1] for B in bases])
-    q = int(offs[-1])
-    P = p + q + mc
-    A = np.zeros((3, P, P))
-    rhs = np.zeros((3, P))
-    folds: list[NDArray[np.int64]] = []
-    regs: list[sp.csr_matrix] = []
-    cols_of: list[NDArray[np.int64]] = []
-    feats: list[Array] = []
-    for i, r in enumerate(ctx.recs):
-        if r.ident:
-            fold = np.where(r.usable, 2, -1)
-        else:
-            L = max(1, int(round(stretch / r.dt)))
-            fold = np.where(r.usable, (np.arange(r.n) // L) % 2, -1)
-        s0 = ctx.state(i, ctx.given)
-        g, b, _, _, _, _ = _core.normal_equations(
-            lv, r.u, r.y, s0, fold.astype(np.int32), 3, "clamp"
-        )
-        indptr, idx, data, _ = _core.regressor_rows(lv, r.u, s0, "clamp")
-        R = sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(r.n, p))
+    curve = []
+    for i in range(len(ctx.recs)):
         d = np.clip((np.nan_to_num(sims[i]) - ctx.y_centre) / ctx.y_half_span, -1.5, 1.5)
-        B = np.hstack([bases[i], np.column_stack([d**k for k in pw])])
-        cols = np.r_[p + int(offs[i]) : p + int(offs[i + 1]), p + q : P]
-        folds.append(fold)
-        regs.append(R)
-        cols_of.append(cols)
-        feats.append(B)
-        for k in range(3):
-            m = fold == k
-            if not m.any():
-                continue
-            Bm = B[m]
-            A[k, :p, :p] += g[k]
-            A[k][:p, cols] += np.asarray(R[m].T @ Bm)
-            A[k][np.ix_(cols, cols)] += Bm.T @ Bm
-            rhs[k, :p] += b[k]
-            rhs[k, cols] += Bm.T @ r.y[m]
-    for k in range(3):  # the cross blocks were filled above the diagonal only
-        A[k, p:, :p] = A[k, :p, p:].T
-    a, bb = np.meshgrid(lv, lv, indexing="ij")
-    e = ctx.model.everett(a, np.minimum(a, bb))
-    ii, jj = np.tril_indices(n, -1)
-    w0 = np.concatenate([e[ii, jj], [ctx.model.y_min], np.zeros(q + mc)])
-    Q = density_roughness(n).toarray()
-    Q *= p / max(float(np.trace(Q)), 1e-300)
-    nb = max(int(r.block.max()) for r in ctx.recs) + 1
-    sse = np.zeros((2, nb))
-    cnt = np.zeros(nb)
+        curve.append(np.column_stack([d**k for k in pw]))
+    fs = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots, shared=curve)
+    P = fs.A.shape[1]
+    sse = np.zeros((2, fs.nb))
+    cnt = np.zeros(fs.nb)
     for k in (0, 1):
-        N = A[1 - k] + A[2]
-        scale = max(float(np.trace(N[:p, :p])) / p, 1e-300)
-        N[:p, :p] += smoothing * scale * Q
-        N[np.diag_indices(P)] += 1e-7 * scale
-        rh = rhs[1 - k] + rhs[2] + 1e-7 * scale * w0
-        sols = []
-        for keep in (np.arange(p + q), np.arange(P)):
+        N, rh = fs.normal(k, smoothing)
+        for s, keep in enumerate((np.arange(P - len(pw)), np.arange(P))):
             w = np.zeros(P)
             w[keep] = linalg.cho_solve(
                 linalg.cho_factor(N[np.ix_(keep, keep)], check_finite=False),
                 rh[keep],
                 check_finite=False,
             )
-            sols.append(w)
-        for i, r in enumerate(ctx.recs):
-            m = folds[i] == k
-            if r.ident or not m.any():
-                continue
-            for s, w in enumerate(sols):
-                res = r.y[m] - (regs[i][m] @ w[:p] + feats[i][m] @ w[cols_of[i]])
-                sse[s] += np.bincount(r.block[m], weights=res**2, minlength=nb)
-            cnt += np.bincount(r.block[m], minlength=nb)
+            sse_k, cnt_k = fs.heldout_sse(k, w)
+            sse[s] += sse_k
+        cnt += cnt_k
     tot = max(float(cnt.sum()), 1.0)
     mse0, mse1 = float(sse[0].sum()) / tot, float(sse[1].sum()) / tot
     used = cnt > 0

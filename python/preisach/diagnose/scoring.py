@@ -17,9 +17,11 @@ from .data import Rec
 
 __all__ = [
     "ClassicalCheck",
+    "FineSystem",
     "Score",
     "classical_check",
     "correlation_length",
+    "fine_system",
     "heldout_score",
     "make_folds",
     "sign_flip_p",
@@ -233,6 +235,126 @@ def running_range_basis(u: Array, dt: float, knots: int, spacing: float) -> Arra
 
 
 @dataclass
+class FineSystem:
+    """Normal equations of the fine classical model on interleaved stretches (two folds).
+
+    Built by :func:`fine_system`.  Columns: the ``p`` Everett nodes and output offset of
+    the ``levels``-level grid (order of ``preisach._core.regressor_rows``), then per
+    recording its initial-state basis (:func:`running_range_basis`, ``n_state[i]`` columns)
+    and its ``extra`` columns, then the ``shared`` columns common to all recordings.
+    ``A[k]``/``rhs[k]`` hold the samples of fold ``k`` (0, 1: alternate stretches of the
+    diagnosis recordings; 2: the identification recordings, always training).
+    """
+
+    ctx: Context
+    p: int
+    A: Array  # (3, P, P)
+    rhs: Array  # (3, P)
+    w0: Array  # the given model's Everett nodes and offset, zeros elsewhere
+    Q: Array  # density roughness (p x p), scaled to trace p
+    folds: list[NDArray[np.int64]]
+    regs: list[sp.csr_matrix]
+    feats: list[Array]  # per recording: its columns' features (state basis, extra, shared)
+    cols: list[NDArray[np.int64]]  # per recording: the indices of those columns
+    n_state: list[int]
+    nb: int  # number of time blocks
+
+    def normal(self, k: int, smoothing: float) -> tuple[Array, Array]:
+        """Return the penalised normal matrix and right-hand side of the fit holding out fold k."""
+        p = self.p
+        N = self.A[1 - k] + self.A[2]
+        scale = max(float(np.trace(N[:p, :p])) / p, 1e-300)
+        N[:p, :p] += smoothing * scale * self.Q
+        N[np.diag_indices(N.shape[0])] += 1e-7 * scale
+        return N, self.rhs[1 - k] + self.rhs[2] + 1e-7 * scale * self.w0
+
+    def heldout_sse(self, k: int, w: Array) -> tuple[Array, Array]:
+        """SSE and sample count per time block of fold k's samples predicted by ``w``."""
+        sse = np.zeros(self.nb)
+        cnt = np.zeros(self.nb)
+        for i, r in enumerate(self.ctx.recs):
+            m = self.folds[i] == k
+            if r.ident or not m.any():
+                continue
+            res = r.y[m] - (self.regs[i][m] @ w[: self.p] + self.feats[i][m] @ w[self.cols[i]])
+            sse += np.bincount(r.block[m], weights=res**2, minlength=self.nb)
+            cnt += np.bincount(r.block[m], minlength=self.nb)
+        return sse, cnt
+
+
+def fine_system(
+    ctx: Context,
+    *,
+    levels: int = CHECK_LEVELS,
+    stretch: float = CHECK_STRETCH,
+    state_knots: int = CHECK_STATE_KNOTS,
+    extra: list[Array] | None = None,
+    shared: list[Array] | None = None,
+) -> FineSystem:
+    """Assemble the normal equations of :func:`classical_check`'s fine classical model.
+
+    ``extra``: per recording, more columns of its own (e.g. a drift basis); ``shared``: per
+    recording, the features of columns whose coefficients all recordings share (e.g. a
+    static curve of the output).  See :class:`FineSystem`.
+    """
+    n = int(levels)
+    lv = np.linspace(ctx.model.u_min, ctx.model.u_max, n)
+    p = n * (n - 1) // 2 + 1
+    state = [running_range_basis(r.u, r.dt, state_knots, 4.0 * stretch) for r in ctx.recs]
+    own = [B if extra is None else np.hstack([B, extra[i]]) for i, B in enumerate(state)]
+    offs = np.cumsum([0] + [B.shape[1] for B in own])
+    q = int(offs[-1])
+    mc = 0 if shared is None else int(shared[0].shape[1])
+    P = p + q + mc
+    A = np.zeros((3, P, P))
+    rhs = np.zeros((3, P))
+    folds: list[NDArray[np.int64]] = []
+    regs: list[sp.csr_matrix] = []
+    feats: list[Array] = []
+    cols_of: list[NDArray[np.int64]] = []
+    for i, r in enumerate(ctx.recs):
+        if r.ident:
+            fold = np.where(r.usable, 2, -1)
+        else:
+            L = max(1, int(round(stretch / r.dt)))
+            fold = np.where(r.usable, (np.arange(r.n) // L) % 2, -1)
+        s0 = ctx.state(i, ctx.given)
+        g, b, _, _, _, _ = _core.normal_equations(
+            lv, r.u, r.y, s0, fold.astype(np.int32), 3, "clamp"
+        )
+        indptr, idx, data, _ = _core.regressor_rows(lv, r.u, s0, "clamp")
+        R = sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(r.n, p))
+        B = own[i] if shared is None else np.hstack([own[i], shared[i]])
+        cols = np.r_[p + int(offs[i]) : p + int(offs[i + 1]), p + q : P]
+        folds.append(fold)
+        regs.append(R)
+        feats.append(B)
+        cols_of.append(cols)
+        for k in range(3):
+            m = fold == k
+            if not m.any():
+                continue
+            Bm = B[m]
+            A[k, :p, :p] += g[k]
+            A[k][:p, cols] += np.asarray(R[m].T @ Bm)
+            A[k][np.ix_(cols, cols)] += Bm.T @ Bm
+            rhs[k, :p] += b[k]
+            rhs[k, cols] += Bm.T @ r.y[m]
+    for k in range(3):  # the cross blocks were filled above the diagonal only
+        A[k, p:, :p] = A[k, :p, p:].T
+    a, bb = np.meshgrid(lv, lv, indexing="ij")
+    e = ctx.model.everett(a, np.minimum(a, bb))
+    ii, jj = np.tril_indices(n, -1)
+    w0 = np.concatenate([e[ii, jj], [ctx.model.y_min], np.zeros(q + mc)])
+    Q = density_roughness(n).toarray()
+    Q *= p / max(float(np.trace(Q)), 1e-300)
+    nb = max(int(r.block.max()) for r in ctx.recs) + 1
+    return FineSystem(
+        ctx, p, A, rhs, w0, Q, folds, regs, feats, cols_of, [B.shape[1] for B in state], nb
+    )
+
+
+@dataclass
 class ClassicalCheck:
     """Outcome of :func:`classical_check`."""
 
@@ -291,92 +413,33 @@ def classical_check(
     adds to a classical model whose initial states are free.
     """
     t0 = time.perf_counter()
-    n = int(levels)
-    lv = np.linspace(ctx.model.u_min, ctx.model.u_max, n)
-    p = n * (n - 1) // 2 + 1
-    bases = [running_range_basis(r.u, r.dt, state_knots, 4.0 * stretch) for r in ctx.recs]
-    pens: list[tuple[int, Array]] = []  # (first column, penalty) of each drift block
+    extra: list[Array] | None = None
+    pens: list[Array] = []  # the drift blocks' curvature penalties
     if drift:
+        extra = []
         for i, r in enumerate(ctx.recs):
             D = ctx.drift_basis(i)
             m = D.shape[1]
             dd = np.diff(np.eye(m), 2, axis=0) if m > 2 else np.zeros((0, m))
             Du = D[r.usable]
             lam = ctx.drift_smoothing * max(float(np.einsum("ij,ij->", Du, Du)) / m, 1e-300)
-            pens.append((bases[i].shape[1], lam * (dd.T @ dd)))
-            bases[i] = np.hstack([bases[i], D])
-    offs = np.cumsum([0] + [B.shape[1] for B in bases])
-    q = int(offs[-1])
-    P = p + q
-    A = np.zeros((3, P, P))
-    rhs = np.zeros((3, P))
-    yy = np.zeros(3)
-    cnt = np.zeros(3)
-    folds: list[NDArray[np.int64]] = []
-    regs: list[sp.csr_matrix] = []
-    for i, r in enumerate(ctx.recs):
-        if r.ident:
-            fold = np.where(r.usable, 2, -1)
-        else:
-            L = max(1, int(round(stretch / r.dt)))
-            fold = np.where(r.usable, (np.arange(r.n) // L) % 2, -1)
-        s0 = ctx.state(i, ctx.given)
-        g, b, y2, _, c, _ = _core.normal_equations(
-            lv, r.u, r.y, s0, fold.astype(np.int32), 3, "clamp"
-        )
-        indptr, idx, data, _ = _core.regressor_rows(lv, r.u, s0, "clamp")
-        R = sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(r.n, p))
-        folds.append(fold)
-        regs.append(R)
-        B = bases[i]
-        cols = slice(int(offs[i]) + p, int(offs[i + 1]) + p)
-        for k in range(3):
-            m = fold == k
-            if not m.any():
-                continue
-            Bm = B[m]
-            A[k, :p, :p] += g[k]
-            A[k, :p, cols] += np.asarray(R[m].T @ Bm)
-            A[k, cols, cols] += Bm.T @ Bm
-            rhs[k, :p] += b[k]
-            rhs[k, cols] += Bm.T @ r.y[m]
-        yy += y2
-        cnt += c
-    for k in range(3):  # the cross blocks were filled above the diagonal only
-        A[k, p:, :p] = A[k, :p, p:].T
-    a, bb = np.meshgrid(lv, lv, indexing="ij")
-    e = ctx.model.everett(a, np.minimum(a, bb))
-    ii, jj = np.tril_indices(n, -1)
-    w0 = np.concatenate([e[ii, jj], [ctx.model.y_min], np.zeros(q)])
-    Q = density_roughness(n).toarray()
-    Q *= p / max(float(np.trace(Q)), 1e-300)
-    nb = max(int(r.block.max()) for r in ctx.recs) + 1
-    sse_b = np.zeros(nb)
-    cnt_b = np.zeros(nb)
+            extra.append(D)
+            pens.append(lam * (dd.T @ dd))
+    fs = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots, extra=extra)
+    sse_b = np.zeros(fs.nb)
+    cnt_b = np.zeros(fs.nb)
     for k in (0, 1):
-        N = A[1 - k] + A[2]
-        scale = max(float(np.trace(N[:p, :p])) / p, 1e-300)
-        N[:p, :p] += smoothing * scale * Q
-        for i, (first, pen) in enumerate(pens):
-            c0 = p + int(offs[i]) + first
+        N, rh = fs.normal(k, smoothing)
+        for i, pen in enumerate(pens):
+            c0 = int(fs.cols[i][0]) + fs.n_state[i]  # the drift columns follow the state's
             N[c0 : c0 + pen.shape[0], c0 : c0 + pen.shape[0]] += pen
-        N[np.diag_indices(P)] += 1e-7 * scale
-        w = linalg.cho_solve(
-            linalg.cho_factor(N, check_finite=False),
-            rhs[1 - k] + rhs[2] + 1e-7 * scale * w0,
-            check_finite=False,
-        )
-        for i, r in enumerate(ctx.recs):
-            m = folds[i] == k
-            if r.ident or not m.any():
-                continue
-            cols = slice(p + int(offs[i]), p + int(offs[i + 1]))
-            res = r.y[m] - (regs[i][m] @ w[:p] + bases[i][m] @ w[cols])
-            sse_b += np.bincount(r.block[m], weights=res**2, minlength=nb)
-            cnt_b += np.bincount(r.block[m], minlength=nb)
+        w = linalg.cho_solve(linalg.cho_factor(N, check_finite=False), rh, check_finite=False)
+        sse, cnt = fs.heldout_sse(k, w)
+        sse_b += sse
+        cnt_b += cnt
     rmse = math.sqrt(float(sse_b.sum()) / max(float(cnt_b.sum()), 1.0))
     ratio = rmse / sigma if sigma > 0 else float("inf")
     seconds = time.perf_counter() - t0
     return ClassicalCheck(
-        ratio, rmse, n, float(smoothing), float(stretch), seconds, sse_b[cnt_b > 0]
+        ratio, rmse, int(levels), float(smoothing), float(stretch), seconds, sse_b[cnt_b > 0]
     )
