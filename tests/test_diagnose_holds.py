@@ -94,3 +94,23 @@ def test_creep_hidden_under_level_errors_is_named_from_the_holds():
     holds = rep.effects[0].holds
     assert holds is not None and holds["qualified"] and holds["p_value"] < 0.01, holds
     assert "qualified on the holds" in rep.to_dict()["effects"][0]["evidence"]
+
+
+def test_a_mode_named_from_the_holds_must_ring_by_itself():
+    """The general block's veto is lifted by a ring in the holds only for a fitted mode that
+    rings: damping below 0.3 and two periods in a typical hold piece (a 1 Hz, zeta 1 "mode"
+    that lowers the within-hold residual is a relaxation)."""
+    from preisach.diagnose.candidates import ModeCandidate
+    from preisach.diagnose.context import Base, Chain, FittedEffect
+    from preisach.diagnose.selection import _rings
+
+    cand = ModeCandidate()
+    holds = HoldPieces([(0, 0, 100)] * 4, np.full(4, 1.0), np.zeros(4))
+
+    def chains(*fits: tuple[float, float]) -> list[Chain]:
+        return [Chain(Base(), [FittedEffect(cand, np.array([f, z, 0.1]))]) for f, z in fits]
+
+    assert _rings(cand, chains((40.0, 0.02), (41.0, 0.03)), holds)
+    assert not _rings(cand, chains((40.0, 0.02), (1.15, 1.0)), holds)  # one fold overdamped
+    assert not _rings(cand, chains((1.5, 0.05), (1.5, 0.05)), holds)  # < 2 periods per piece
+    assert not _rings(cand, chains((40.0, 0.02)), HoldPieces([], np.zeros(0), np.zeros(0)))

@@ -53,7 +53,7 @@ from .candidates import Candidate, DriftCandidate
 from .congruency import CURVE_BEYOND_CLASSICAL, output_curve_check
 from .context import Chain, Context, Fold
 from .drift import drift_refuted_by_holds
-from .holds import HoldEvidence, hold_evidence, hold_pieces
+from .holds import HoldEvidence, HoldPieces, hold_evidence, hold_pieces
 from .linear_block import rate_not_shown
 from .scoring import Score, classical_check, heldout_score, make_folds, sign_flip_p
 
@@ -123,6 +123,26 @@ def _implausible(ctx: Context, cand: Candidate, chains: list[Chain]) -> str | No
             if why:
                 return why
     return None
+
+
+def _rings(cand: Candidate, chains: list[Chain], pieces: HoldPieces) -> bool:
+    """Whether every fold's fitted mode rings by its own parameters within the holds.
+
+    A damping ratio below the mode's ``MAX_ZETA`` (a visible overshoot) and at least two
+    periods in a typical hold piece: a heavily damped or slow "mode" that lowers the
+    within-hold residual is a relaxation (creep), not a ring.
+    """
+    if not len(pieces):
+        return False
+    min_f = 2.0 / float(np.median(pieces.seconds))
+    max_zeta = float(getattr(cand, "MAX_ZETA", 0.3))
+    fits = [ch.effects[-1].x for ch in chains if ch.effects and ch.effects[-1].cand is cand]
+    for x in fits:
+        par = cand.params(x)
+        f, z = par.get("f_n"), par.get("zeta")
+        if f is None or z is None or float(z) >= max_zeta or float(f) < min_f:
+            return False
+    return bool(fits)
 
 
 def _choose(
@@ -426,7 +446,12 @@ def run_selection(
             if not reasons:  # only the qualifying fits are checked against their names
                 bad = _implausible(ctx, remaining[name], new_chains[name])
                 ring = held.get(name) if remaining[name].name in RING_EFFECTS else None
-                if bad and ring is not None and ring.qualifies(alpha):
+                if (
+                    bad
+                    and ring is not None
+                    and ring.qualifies(alpha)
+                    and _rings(remaining[name], new_chains[name], pieces)
+                ):
                     # a ring the general block (tens of ms of taps) missed goes on in the
                     # holds, where no delay or lag acts: the mode's name stands
                     why_ring[name] = f"{bad}; but {ring.statement()}"
