@@ -32,6 +32,10 @@ Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing descriptio
    ``tie_alpha``), which is then preferred (parsimony among explanations the data cannot tell
    apart; the held-out scoring itself already charges for over-fitting, so no information
    criterion is added: the number of parameters matters only through this preference).
+   Creep and sensor drift may qualify on the held-out *holds* instead (the residual about
+   each input hold's mean, where no classical model moves: :mod:`preisach.diagnose.holds`),
+   and a structural resonance the general linear block does not show keeps its name when
+   its ring shows there and its fitted mode rings by itself (:func:`_rings`).
    Selection stops
    when nothing qualifies; candidates that lowered the held-out error by less than
    ``retry_gain`` (2 %) in a step are not tried again in the next.
@@ -88,8 +92,9 @@ class StepResult:
     reasons: dict[str, str]
     chosen: str | None
     chains: dict[str, list[Chain]]
-    #: within-hold evidence of the effects that act in time (creep, sensor drift), when the
-    #: recordings hold the input (:mod:`preisach.diagnose.holds`)
+    #: within-hold evidence of the effects that act in time (creep, sensor drift) or ring
+    #: on (structural resonance), when the recordings hold the input
+    #: (:mod:`preisach.diagnose.holds`)
     holds: dict[str, HoldEvidence] = field(default_factory=dict)
     #: the candidates that qualified on the holds alone
     by_holds: set[str] = field(default_factory=set)
