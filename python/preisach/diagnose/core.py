@@ -21,7 +21,7 @@ from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
-from .holds import hold_motion, hold_pieces
+from .holds import hold_motion
 from .locate import amount_text, analyse_residuals, display_unit
 from .registry import CANDIDATES
 from .report import (
@@ -637,7 +637,7 @@ def _report(
     # holds, whatever its resolution; motion there is evidence however small the RMSE)
     motion = None
     if not names:
-        motion = hold_motion(sel.steps[-1].baseline, hold_pieces(ctx), sigma_hat)
+        motion = hold_motion(sel.steps[-1].baseline, sel.holds, sigma_hat)
         if motion is not None and motion.moves:
             consistent = False
     noise_test: dict[str, Any] = {

@@ -221,6 +221,16 @@ HOLD_MOTION_MIN: float = 2.0
 FOLLOWS_T_MAX: float = 2.0
 
 
+def slope_t(x: Array, y: Array) -> float:
+    """t-statistic of the least-squares slope of ``y`` on ``x`` through zero (0 if undefined)."""
+    xx = float(x @ x)
+    if xx <= 0.0 or x.size < 2:
+        return 0.0
+    k = float(x @ y) / xx
+    e = y - k * x
+    return k / math.sqrt(max(float(e @ e), 1e-300) / (x.size - 1) / xx)
+
+
 @dataclass(frozen=True)
 class HoldCheck:
     """How the residual moves during input holds compared with a fitted drift curve.
@@ -300,14 +310,7 @@ def hold_check(
     share = float(d @ r) / dd2
     e = r - share * d
     se = math.sqrt(max(float(e @ e), 1e-300) / (n - 1) / dd2)
-    m = np.asarray(mv)
-    mm = float(m @ m)
-    follows = 0.0
-    if mm > 0.0:
-        k = float(m @ d) / mm
-        em = d - k * m
-        follows = k / math.sqrt(max(float(em @ em), 1e-300) / (n - 1) / mm)
-    return HoldCheck(n, share, se, math.sqrt(dd2 / n), follows)
+    return HoldCheck(n, share, se, math.sqrt(dd2 / n), slope_t(np.asarray(mv), d))
 
 
 def drift_hold_check(ctx: Context, chain: Chain, settle: float = 0.25) -> HoldCheck:

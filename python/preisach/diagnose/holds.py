@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .drift import slope_t
 from .scoring import Score, sign_flip_p
 
 if TYPE_CHECKING:
@@ -259,12 +260,7 @@ def hold_motion(score: Score, holds: HoldPieces, sigma: float) -> HoldMotion | N
             third = max(res.size // 3, 1)
             motion[k] = float(np.mean(res[-third:]) - np.mean(res[:third]))
     d, mv = motion[m], holds.moves[m]
-    mm = float(mv @ mv)
-    follows = 0.0
-    if mm > 0 and d.size > 2:
-        k_ = float(mv @ d) / mm
-        e = d - k_ * mv
-        follows = k_ / math.sqrt(max(float(e @ e), 1e-300) / (d.size - 1) / mm)
+    follows = slope_t(mv, d) if d.size > 2 else 0.0
     return HoldMotion(
         int(m.sum()),
         float(holds.seconds[m].sum()),

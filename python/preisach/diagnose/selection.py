@@ -109,6 +109,7 @@ class Selection:
     folds: list[Fold]
     given: Score
     refit_baseline: Score | None
+    holds: HoldPieces  # the input holds the selection judged effects on
 
 
 def _implausible(ctx: Context, cand: Candidate, chains: list[Chain]) -> str | None:
@@ -565,4 +566,4 @@ def run_selection(
         # candidates that could not lower the held-out error by even 2 % are not retried
         for k in [k for k in remaining if gains.get(k, 1.0) < retry_gain]:
             del remaining[k]
-    return Selection(steps, kept, folds, given, refit_score)
+    return Selection(steps, kept, folds, given, refit_score, pieces)
