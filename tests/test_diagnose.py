@@ -265,8 +265,11 @@ def test_report_states_amounts_in_the_recordings_output_unit():
     moment = [
         Recording.from_arrays(t=r.t, u=r.u, y=1.05 * r.y + 0.02, output_units="A m^2") for r in recs
     ]
-    rep = diagnose(m, moment, candidates=["gain_offset"], progress=False)
+    lines: list[str] = []  # the progress lines printed while it runs, in the unit too
+    rep = diagnose(m, moment, candidates=["gain_offset"], progress=lines.append)
     assert rep.verdict == "gain_offset" and rep.unit == "A m^2"
+    assert not [s for s in lines if "mV" in s], lines
+    assert [s for s in lines if "gain_offset: held-out RMSE" in s and "A m^2 (" in s], lines
     text, html = rep.summary(), diagnosis_html(rep, figure=False)
     assert "A m^2 from the model's" in rep.effects[0].statement  # the offset, in its unit
     assert "mV" not in text and "mV" not in html, text

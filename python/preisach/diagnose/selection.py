@@ -59,6 +59,7 @@ from .context import Chain, Context, Fold
 from .drift import drift_refuted_by_holds
 from .holds import HoldEvidence, HoldPieces, hold_evidence, hold_pieces
 from .linear_block import rate_not_shown
+from .locate import amount_text
 from .scoring import Score, classical_check, heldout_score, make_folds, sign_flip_p
 
 #: the finer grid a refitted base is tried on when the model's grid leaves too much
@@ -373,8 +374,8 @@ def run_selection(
         if progress:
             progress(
                 "  base refitted on the training folds: held-out RMSE "
-                f"{1e3 * refit_score.rmse:.4g} mV "
-                f"(given model {1e3 * given.rmse:.4g} mV)"
+                f"{amount_text(refit_score.rmse, ctx.output_unit, '.4g')} "
+                f"(given model {amount_text(given.rmse, ctx.output_unit, '.4g')})"
             )
         baseline = refit_score
     else:
@@ -410,7 +411,8 @@ def run_selection(
                 n_par[name] = float(cand.n_params(ctx))
             if progress:
                 progress(
-                    f"  {name}: held-out RMSE {1e3 * scores[name].rmse:.4g} mV "
+                    f"  {name}: held-out RMSE "
+                    f"{amount_text(scores[name].rmse, ctx.output_unit, '.4g')} "
                     f"({_time.perf_counter() - t0:.2f} s)"
                 )
         pv, gains, expl, ok, why = {}, {}, {}, {}, {}
