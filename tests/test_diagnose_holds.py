@@ -9,6 +9,8 @@ plain in the holds while it hides in the pooled residual.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from preisach import PreisachModel, Recording
@@ -114,3 +116,55 @@ def test_a_mode_named_from_the_holds_must_ring_by_itself():
     assert not _rings(cand, chains((40.0, 0.02), (1.15, 1.0)), holds)  # one fold overdamped
     assert not _rings(cand, chains((1.5, 0.05), (1.5, 0.05)), holds)  # < 2 periods per piece
     assert not _rings(cand, chains((40.0, 0.02)), HoldPieces([], np.zeros(0), np.zeros(0)))
+
+
+def test_a_ring_in_few_blocks_qualifies_only_as_the_same_mode_in_both_folds():
+    """A ring after a few large steps leaves the block sign-flip test no power; the folds,
+    fitted on disjoint halves, must then find the same ringing mode, and at least two held-out
+    blocks must each be predicted far beyond the noise."""
+    from preisach.diagnose.candidates import ModeCandidate
+    from preisach.diagnose.context import Base, Chain, FittedEffect
+    from preisach.diagnose.selection import _repeated_ring
+
+    cand = ModeCandidate()
+    holds = HoldPieces([(0, 0, 100)] * 4, np.full(4, 1.0), np.zeros(4))
+
+    def chains(*fits: tuple[float, float]) -> list[Chain]:
+        return [Chain(Base(), [FittedEffect(cand, np.array([f, z, 0.1]))]) for f, z in fits]
+
+    sigma, n = 2e-3, np.full(6, 500.0)
+    big = 50 * sigma**2 * 500  # a block predicted 50 noise variances per sample better
+    d = np.array([big, 0.8 * big, -1e-3, 2e-4, -5e-4, 1e-4])
+    assert _repeated_ring(cand, chains((73.7, 0.0074), (73.69, 0.0071)), holds, d, n, sigma)
+    # different modes in the two folds, or one that does not ring, are no repeated ring
+    assert not _repeated_ring(cand, chains((73.7, 0.007), (81.0, 0.007)), holds, d, n, sigma)
+    assert not _repeated_ring(cand, chains((73.7, 0.007), (73.7, 0.02)), holds, d, n, sigma)
+    assert not _repeated_ring(cand, chains((73.7, 0.5), (73.7, 0.5)), holds, d, n, sigma)
+    # one event alone is no repetition
+    one = d.copy()
+    one[1] = 0.0
+    assert not _repeated_ring(cand, chains((73.7, 0.0074), (73.69, 0.0071)), holds, one, n, sigma)
+
+
+def test_the_final_fit_is_checked_against_its_name_too():
+    """The fit on all samples is held to the name like the folds' fits: a "mode" that no
+    longer rings is flagged, also when its name stood against the general linear block."""
+    from types import SimpleNamespace
+
+    from preisach.diagnose.candidates import ModeCandidate
+    from preisach.diagnose.context import Base, Chain, FittedEffect
+    from preisach.diagnose.selection import final_implausible
+
+    cand = ModeCandidate()
+    ctx: Any = SimpleNamespace(dt_min=1e-3)
+    holds = HoldPieces([(0, 0, 100)] * 4, np.full(4, 1.0), np.zeros(4))
+    plain: Any = SimpleNamespace(veto_lifted=set())
+    lifted: Any = SimpleNamespace(veto_lifted={cand.key})
+
+    def chain(f: float, z: float) -> Chain:
+        return Chain(Base(), [FittedEffect(cand, np.array([f, z, 0.1]))])
+
+    assert final_implausible(ctx, cand, chain(73.7, 0.007), plain, cand.key, holds) is None
+    assert "damping ratio" in final_implausible(ctx, cand, chain(3.0, 0.9), plain, cand.key, holds)
+    assert final_implausible(ctx, cand, chain(73.7, 0.007), lifted, cand.key, holds) is None
+    assert final_implausible(ctx, cand, chain(1.5, 0.9), lifted, cand.key, holds)

@@ -33,7 +33,14 @@ from .report import (
     where_of,
 )
 from .scoring import sign_flip_p
-from .selection import GridChoice, Selection, choose_grid, resolution_check, run_selection
+from .selection import (
+    GridChoice,
+    Selection,
+    choose_grid,
+    final_implausible,
+    resolution_check,
+    run_selection,
+)
 
 __all__ = ["diagnose", "separating_experiment"]
 
@@ -500,6 +507,11 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
         held, qual = st.holds.get(key), key in st.by_holds
         if held is not None:
             ev += ("; qualified on the holds: " if qual else "; ") + held.statement()
+        if key in st.by_ring:
+            ev += f"; qualified on its repeated ring: {st.by_ring[key]}"
+        bad = final_implausible(ctx, cand, chain, st, key, sel.holds)
+        if bad:
+            ev += f"; CAUTION: the fit on all usable samples is implausible for its name: {bad}"
         others = sorted(
             (n for n in st.scores if by_key[n].name != name and st.gains[n] > 0),
             key=lambda n: -st.gains[n],
