@@ -96,6 +96,8 @@ def test_report_statement_parameters_and_uncertainty(delay_case, delay_report):
     assert float(stated.group(1)) == pytest.approx(1e3 * tau["value"], abs=float(stated.group(2)))
     text = delay_report.summary()
     assert "verdict: delay" in text and "candidates" in text and "residual RMS" in text
+    kept = next(c for c in delay_report.candidates if c["kept"])  # table in mV, like the rest
+    assert f"{1e3 * kept['heldout_rmse']:8.4g} mV" in text
     det = delay_report.details()
     json.dumps(det)  # everything is JSON-serialisable
     assert det["candidates"] and det["before"]["covariates"]

@@ -168,3 +168,51 @@ def test_the_final_fit_is_checked_against_its_name_too():
     assert "damping ratio" in final_implausible(ctx, cand, chain(3.0, 0.9), plain, cand.key, holds)
     assert final_implausible(ctx, cand, chain(73.7, 0.007), lifted, cand.key, holds) is None
     assert final_implausible(ctx, cand, chain(1.5, 0.9), lifted, cand.key, holds)
+
+
+def test_a_wander_in_the_holds_predicts_itself_and_noise_or_a_ring_does_not():
+    """The wander test predicts each 50 ms stretch of a hold from its neighbours: a sensor
+    wander (white noise through two 0.15 s lags) does, white noise and a 74 Hz ring do not; the
+    hold levels (the base's errors) do not enter."""
+    from preisach.diagnose.holds import hold_wander
+
+    levels_err, _, noise, holds = _staircase(4, n_steps=14)
+    rng = np.random.default_rng(5)
+    kern = np.exp(-np.arange(400) * DT / 0.15)  # white noise through two 0.15 s lags
+    wander = np.convolve(np.convolve(rng.normal(0.0, 1.0, noise.size), kern), kern)
+    wander = wander[: noise.size] * 2.5 * NOISE / wander[: noise.size].std()
+    t = np.arange(noise.size) * DT
+    ring = 3 * NOISE * np.sin(2 * np.pi * 74.0 * t)
+    dts = [DT]
+    w = hold_wander(_score(levels_err + noise + wander), holds, NOISE, dts)
+    assert w is not None and w.qualifies(0.01), w
+    assert 1.5 * NOISE < w.wander_rms < 4 * NOISE
+    for other in (noise, noise + ring):
+        w0 = hold_wander(_score(levels_err + other), holds, NOISE, dts)
+        assert w0 is not None and not w0.qualifies(0.01), w0
+
+
+def test_a_fast_sensor_wander_is_named_from_the_holds():
+    """A sensor wander too fast for a drift curve fitted on other time blocks (white noise
+    through two 0.15 s lags, 3 noise sigmas) leaves the held-out blocks unexplained; the
+    holds show it predicts itself and does not follow the moves: a sensor drift."""
+    m = PreisachModel.builtin("ss15-2hz", levels=21)
+    rng = np.random.default_rng(7)
+    kern = np.exp(-np.arange(400) * DT / 0.15)
+    recs = []
+    for k in range(2):
+        levels = m.u_min + (m.u_max - m.u_min) * rng.uniform(0.05, 0.95, 10)
+        u = np.repeat(levels, int(1.5 / DT))
+        t = np.arange(u.size) * DT
+        w = np.convolve(np.convolve(rng.normal(0.0, 1.0, u.size), kern), kern)[: u.size]
+        y = m.simulate(u, m.negative_saturation()).output + 3 * NOISE * w / w.std()
+        y = y + rng.normal(0.0, NOISE, u.size)
+        recs.append(Recording.from_arrays(t=t, u=u, y=y, experiment=f"steps{k}"))
+    rep = diagnose(m, recs, candidates=["creep", "sensor_drift"], progress=False)
+    assert rep.verdict == "sensor_drift", rep.summary()
+    holds = rep.effects[0].holds
+    assert holds is not None and holds["p_value"] < 0.01 and holds["gain"] > 0.3, holds
+    assert 2 * NOISE < rep.effects[0].parameters["wander_rms"]["value"] < 4 * NOISE
+    # without the drift among the candidates the same motion stays unexplained
+    rep2 = diagnose(m, recs, candidates=["creep"], progress=False)
+    assert rep2.verdict == "unexplained", rep2.summary()

@@ -21,7 +21,7 @@ from .candidates import Candidate, DriftCandidate
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
-from .holds import hold_motion
+from .holds import HOLD_FOLLOWS_T, HoldMotion, hold_motion, hold_wander, wander_curves
 from .locate import amount_text, analyse_residuals, display_unit
 from .registry import CANDIDATES
 from .report import (
@@ -346,7 +346,16 @@ def diagnose(
     final = _final_fits(ctx, cands, sel, do_refit)
     # 6. the augmented model and the report
     report = _report(
-        model, ctx, sel, base, final, do_refit, noise_ratio, time.perf_counter() - t_start, grid
+        model,
+        ctx,
+        sel,
+        base,
+        final,
+        do_refit,
+        noise_ratio,
+        time.perf_counter() - t_start,
+        grid,
+        alpha,
     )
     if progress:
         progress(f"verdict: {report.verdict} ({report.seconds:.1f} s)")
@@ -571,6 +580,54 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
     return _Final(names, chain, effects, drift_eff, ambiguous)
 
 
+def _wander_drift(
+    ctx: Context, sel: Selection, motion: HoldMotion, sigma: float, alpha: float
+) -> EffectReport | None:
+    """Name a sensor drift from its wander within the holds (or return None).
+
+    When nothing was kept, the output moves within the input holds without following the
+    moves into them (:class:`~preisach.diagnose.holds.HoldMotion`: no rate-independent model
+    moves there, and creep would go on in the direction of each move), and that motion
+    predicts itself on held-out stretches of the holds
+    (:func:`~preisach.diagnose.holds.hold_wander`), the sensor drifts - faster than the
+    drift curve's held-out time blocks can follow (it was tried in the selection and did not
+    predict the blocks it was not fitted on), so it is reported as a wander of the reading
+    (its RMS), not as a curve to subtract.
+    """
+    if motion.follows_t >= HOLD_FOLLOWS_T:
+        return None
+    if not sel.steps or "sensor_drift" not in sel.steps[0].scores:
+        return None  # the drift was not among the candidates
+    dts = [r.dt for r in ctx.recs]
+    wander = hold_wander(sel.steps[-1].baseline, sel.holds, sigma, dts, seed=len(sel.steps))
+    if wander is None or not wander.qualifies(alpha):
+        return None
+    curves = wander_curves(sel.steps[-1].baseline, sel.holds, dts)
+    block = max((r.t[-1] - r.t[0]) / (r.block.max() - r.block.min() + 1) for r in ctx.recs)
+    amount = amount_text(wander.wander_rms, ctx.output_unit, ".2g")
+    return EffectReport(
+        name="sensor_drift",
+        statement=(
+            f"the reading wanders by {amount} (RMS within the input holds, beyond the noise) "
+            "without following the input's moves: a sensor or electronics drift faster than "
+            f"a drift curve fitted on other time blocks of about {block:.2g} s can predict; "
+            "hold the input and average, or recalibrate the sensor's offset often"
+        ),
+        evidence=(
+            f"{wander.statement()}; {motion.describe()}; "
+            "no rate-independent model moves while the input holds, and creep would follow "
+            "the moves"
+        ),
+        where=where_of([ctx.recs[i] for i in ctx.diag], [curves[i] for i in ctx.diag], ctx.u_span),
+        parameters={
+            "wander_rms": {"value": wander.wander_rms, "std": float("nan"), "unit": "V"},
+        },
+        heldout_rmse_before=wander.still_ratio * sigma,
+        heldout_rmse_after=wander.ratio * sigma,
+        holds={**wander.as_dict(), "qualified": True},
+    )
+
+
 def _report(
     model: PreisachModel,
     ctx: Context,
@@ -581,10 +638,12 @@ def _report(
     noise_ratio: float,
     seconds: float,
     grid: dict[str, Any] | None = None,
+    alpha: float = 0.01,
 ) -> DiagnosisReport:
     """Build the augmented model, the residual analyses, the noise test and the report.
 
-    ``grid`` is the base choice of :func:`~preisach.diagnose.selection.choose_grid`.
+    ``grid`` is the base choice of :func:`~preisach.diagnose.selection.choose_grid`;
+    ``alpha`` the selection's significance level (for the holds' wander).
     """
     recs, diag, steps, kept = ctx.recs, ctx.diag, sel.steps, sel.kept
     names, chain = final.names, final.chain
@@ -648,10 +707,14 @@ def _report(
     # nothing kept: the holds must be still too (no classical model moves while the input
     # holds, whatever its resolution; motion there is evidence however small the RMSE)
     motion = None
+    effects = final.effects
     if not names:
         motion = hold_motion(sel.steps[-1].baseline, sel.holds, sigma_hat)
         if motion is not None and motion.moves:
             consistent = False
+            drift = _wander_drift(ctx, sel, motion, sigma_hat, alpha)
+            if drift is not None:
+                effects = [drift]
     noise_test: dict[str, Any] = {
         "ratio": ratio,
         "threshold": float(noise_ratio),
@@ -664,10 +727,10 @@ def _report(
         unexplained = unexplained_of(
             dsub, [res_after[i] for i in diag], after_a, ctx.u_span, ratio, noise_ratio
         )
-        if motion is not None and motion.moves:
+        if motion is not None and motion.moves and effects is final.effects:
             unexplained["holds"] = motion.as_dict()
             unexplained["statement"] += f"; {motion.statement()}"
-    verdict = names[0] if names else ("none" if consistent else "unexplained")
+    verdict = effects[0].name if effects else ("none" if consistent else "unexplained")
     aug.metadata["diagnosis"]["verdict"] = verdict
     notes = [
         f"{a['effect']} or {a['rival']}: equal within the noise; {a['experiment']}"
@@ -684,7 +747,7 @@ def _report(
         )
     return DiagnosisReport(
         verdict=verdict,
-        effects=final.effects,
+        effects=effects,
         rmse_before=rmse_before,
         rmse_after=rmse_after,
         noise_sigma=sigma_hat,

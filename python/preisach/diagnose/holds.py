@@ -19,6 +19,7 @@ one held-out block); :func:`hold_evidence` compares two chains' held-out residua
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -211,7 +212,16 @@ class HoldMotion:
         return self.n_pieces >= HOLD_MIN_PIECES and self.ratio >= HOLD_EXCESS
 
     def statement(self) -> str:
-        """One line: the motion in words."""
+        """One line: the motion in words, and that nothing predicted it when it moves."""
+        if not self.moves:
+            return self.describe()
+        return (
+            f"{self.describe()}; no rate-independent model moves while the input holds, and "
+            "no candidate predicted it on held-out data"
+        )
+
+    def describe(self) -> str:
+        """Describe the motion in words."""
         if not self.moves:
             return (
                 f"within {self.n_pieces} input holds ({self.seconds:.3g} s) the residual stays "
@@ -225,8 +235,7 @@ class HoldMotion:
         return (
             f"the output moves within {self.n_pieces} input holds ({self.seconds:.3g} s) at "
             f"{self.ratio:.3g} x the noise (each hold's mean removed; bound {HOLD_EXCESS:g} x), "
-            f"{how}, t = {self.follows_t:.2g}; no rate-independent model moves while the input "
-            "holds, and no candidate predicted it on held-out data"
+            f"{how}, t = {self.follows_t:.2g}"
         )
 
     def as_dict(self) -> dict[str, Any]:
@@ -266,4 +275,130 @@ def hold_motion(score: Score, holds: HoldPieces, sigma: float) -> HoldMotion | N
         float(holds.seconds[m].sum()),
         math.sqrt(float(sse[m].sum()) / float(cnt[m].sum())) / sigma,
         follows,
+    )
+
+
+#: length (s) of the alternating stretches of a hold piece the wander test predicts from
+#: their neighbours (long enough to average a ring of tens of hertz away, short against a
+#: sensor's wander)
+WANDER_STRETCH = 0.05
+
+
+@dataclass(frozen=True)
+class HoldWander:
+    """How well the output's motion within the holds predicts itself (:func:`hold_wander`)."""
+
+    n_pieces: int
+    seconds: float
+    still_ratio: float  # held-out RMS about the piece's level (fitted on the other stretches)
+    ratio: float  # held-out RMS about the neighbouring stretches' levels / noise
+    gain: float  # relative reduction of that RMS
+    explained: float  # mean-square reduction / noise variance
+    p_value: float  # one-sided sign-flip test over the pieces
+    wander_rms: float  # RMS of the wander about each hold's level beyond the noise (V)
+
+    def qualifies(self, alpha: float) -> bool:
+        """Whether the holds show a smooth motion that predicts held-out stretches."""
+        return (
+            self.n_pieces >= HOLD_MIN_PIECES
+            and self.gain >= HOLD_MIN_GAIN
+            and self.explained >= HOLD_MIN_EXPLAINED
+            and self.p_value < alpha
+        )
+
+    def statement(self) -> str:
+        """One line: the evidence in words."""
+        ms = 1e3 * WANDER_STRETCH
+        return (
+            f"within {self.n_pieces} input holds ({self.seconds:.3g} s) the level of each "
+            f"{ms:.0f} ms stretch, taken from its two neighbours, predicts it at "
+            f"{self.ratio:.3g} x the noise, against {self.still_ratio:.3g} x for a still output "
+            f"at the hold's level ({100 * self.gain:.0f} % lower, sign-flip p = "
+            f"{self.p_value:.2g} over the pieces)"
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready fields."""
+        return {
+            "pieces": self.n_pieces,
+            "seconds": self.seconds,
+            "base_ratio": self.still_ratio,
+            "ratio": self.ratio,
+            "gain": self.gain,
+            "explained_noise_variances": self.explained,
+            "p_value": self.p_value,
+            "wander_rms": self.wander_rms,
+            "stretch_s": WANDER_STRETCH,
+        }
+
+
+def wander_curves(score: Score, holds: HoldPieces, dt: Sequence[float]) -> list[Array]:
+    """Per recording: each hold stretch's level taken from its neighbours (0 outside holds).
+
+    The pieces are cut into alternating :data:`WANDER_STRETCH` stretches; a stretch's
+    prediction is the mean of its neighbours' means (one neighbour at the ends), so no
+    sample is predicted from itself.
+    """
+    out = [np.zeros(r.size) for r in score.residuals]
+    for i, a, b in holds.pieces:
+        res = score.residuals[i][a:b]
+        n = max(int(round(WANDER_STRETCH / dt[i])), 1)
+        k = res.size // n
+        if k < 3 or np.isnan(res).any():
+            continue
+        means = res[: k * n].reshape(k, n).mean(axis=1)
+        left = np.r_[means[1], means[:-1]]
+        right = np.r_[means[1:], means[-2]]
+        pred = np.repeat(0.5 * (left + right), n)
+        out[i][a : a + k * n] = pred
+    return out
+
+
+def hold_wander(
+    score: Score, holds: HoldPieces, sigma: float, dt: Sequence[float], seed: int = 0
+) -> HoldWander | None:
+    """Whether the residual within the holds wanders smoothly: a held-out test on the holds.
+
+    Each hold piece is cut into :data:`WANDER_STRETCH` stretches.  Every stretch is predicted
+    twice, never from itself: by the mean of the piece's other stretches (an output that
+    stands still, as every rate-independent model's does while the input holds) and by the
+    mean of its two neighbouring stretches (:func:`wander_curves`: an output that moves
+    smoothly, as a sensor drift or creep does).  The second must be better by
+    :data:`HOLD_MIN_GAIN` and :data:`HOLD_MIN_EXPLAINED` noise variances with a sign-flip p
+    below the level, over the pieces.  On white noise the neighbours' means are the noisier
+    predictors, so the test leans against motion; a ring of tens of hertz averages out in
+    every stretch and is not taken for a wander.  ``dt`` is the sample time (s) per recording.
+    """
+    if len(holds) == 0 or not sigma > 0:
+        return None
+    local = wander_curves(score, holds, dt)
+    s_still, s_local, cnt, secs = [], [], [], 0.0
+    for i, a, b in holds.pieces:
+        res = score.residuals[i][a:b]
+        n = max(int(round(WANDER_STRETCH / dt[i])), 1)
+        k = res.size // n
+        if k < 3 or np.isnan(res).any():
+            continue
+        r = res[: k * n]
+        sums = r.reshape(k, n).sum(axis=1)
+        others = (sums.sum() - sums) / (n * (k - 1))  # each stretch's level from the others
+        e_still = r - np.repeat(others, n)
+        e_local = r - local[i][a : a + k * n]
+        s_still.append(float(e_still @ e_still))
+        s_local.append(float(e_local @ e_local))
+        cnt.append(r.size)
+        secs += r.size * dt[i]
+    if not cnt:
+        return None
+    ss, sl, c = np.asarray(s_still), np.asarray(s_local), np.asarray(cnt, float)
+    mse_s, mse_l = float(ss.sum() / c.sum()), float(sl.sum() / c.sum())
+    return HoldWander(
+        int(c.size),
+        secs,
+        math.sqrt(mse_s) / sigma,
+        math.sqrt(mse_l) / sigma,
+        1.0 - math.sqrt(mse_l / mse_s) if mse_s > 0 else 0.0,
+        (mse_s - mse_l) / sigma**2,
+        sign_flip_p(ss - sl, seed=seed),
+        math.sqrt(max(mse_s - sigma**2, 0.0)),
     )

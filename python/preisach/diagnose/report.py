@@ -214,8 +214,8 @@ class DiagnosisReport:
         if self.unexplained is not None:
             lines.append(f"unexplained: {self.unexplained['statement']}")
         lines += [f"note: {n}" for n in self.notes]
-        for k, e in enumerate(self.effects, 1):
-            lines.append(f"{k}. {e.name}: {e.statement}")
+        for j, e in enumerate(self.effects, 1):
+            lines.append(f"{j}. {e.name}: {e.statement}")
             lines.append(f"   {e.evidence}")
         lines.append("candidates (held-out RMSE per selection step):")
         for c in self.candidates:
