@@ -5,6 +5,13 @@ A concealed-delay case of the package's own generator with every experiment last
 timed with and without the identification data (which makes every candidate refit the
 Preisach weights), on this machine, in one run.
 
+The non-congruence candidate's start-value scan (805 linear feedback gains and zeros, each a
+profiled least-squares fit of the weights) runs in one C++ call
+(:meth:`preisach.diagnose.problem.Problem.linear_feedback_scan`) where it applies; on the
+first such scan of the run the same points are also evaluated the previous way (one Python
+evaluation per point, :meth:`~preisach.diagnose.problem.Problem.sse_many`), timed and compared
+(that extra evaluation is left out of the diagnosis times below).
+
     python benchmarks/bench_diagnose.py
 """
 
@@ -12,9 +19,48 @@ from __future__ import annotations
 
 import os
 import time
+from typing import Any
 
+import numpy as np
 from preisach.diagnose import diagnose
+from preisach.diagnose.problem import Problem
 from preisach.studies.diagnosis_cases import make_case
+
+_scan = Problem.linear_feedback_scan
+_scans: dict[str, Any] = {"n": 0, "wall": 0.0, "cpu": 0.0, "extra": 0.0, "extra_cpu": 0.0}
+_scans["compared"] = None
+
+
+def _timed_scan(self: Problem, gains: np.ndarray, zeros: np.ndarray) -> np.ndarray | None:
+    """:meth:`Problem.linear_feedback_scan`, timed; the first one compared with sse_many."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = _scan(self, gains, zeros)
+    dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if out is None:
+        return out
+    _scans["n"] += 1
+    _scans["wall"] += dt
+    _scans["cpu"] += cpu
+    if _scans["compared"] is None:
+        t1, c1 = time.perf_counter(), time.process_time()
+        xs = [np.array([a, 0.0, 0.0, z]) for a, z in zip(gains, zeros)]
+        old = np.array(self.sse_many(xs, coarse=True))
+        dt_old, cpu_old = time.perf_counter() - t1, time.process_time() - c1
+        _scans["extra"] += time.perf_counter() - t1
+        _scans["extra_cpu"] += time.process_time() - c1
+        m = 161
+        same = all(
+            int(np.argmin(old[k : k + m])) == int(np.argmin(out[k : k + m]))
+            for k in range(0, old.size, m)
+        )
+        _scans["compared"] = (
+            f"feedback gain scan, {gains.size} points: one C++ call {dt:.2f} s wall / "
+            f"{cpu:.2f} s CPU, per-point Python evaluation {dt_old:.2f} s / {cpu_old:.2f} s CPU "
+            f"({cpu_old / max(cpu, 1e-9):.1f} x the CPU, {dt_old / max(dt, 1e-9):.1f} x the wall "
+            f"time); largest relative SSE difference {float(np.max(np.abs(old - out) / old)):.1g}, "
+            f"best gain per zero level {'the same' if same else 'DIFFERENT'}"
+        )
+    return out
 
 
 def main() -> None:
@@ -35,22 +81,31 @@ def main() -> None:
         f"case generated in {t_case:.1f} s"
     )
     model = case.identify()
-    for label, ident in (
-        ("with the identification sweep (base refitted)", case.identification),
-        ("without it (given model fixed)", None),
-    ):
-        t0, c0 = time.perf_counter(), time.process_time()
-        rep = diagnose(model, case.recordings, identification=ident)
-        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
-        now = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-        print(
-            f"diagnose {label}: {dt:.1f} s wall, {cpu:.1f} s CPU ({cpu / dt:.2f} cores busy on "
-            f"average; load now {now:.1f}), "
-            f"{sum(n) / dt / 1e3:.1f} k samples/s, "
-            f"verdict {rep.verdict}, "
-            f"held-out RMSE {1e3 * rep.rmse_before:.3g} -> {1e3 * rep.rmse_after:.3g} mV "
-            f"({'under' if dt < 60 else 'OVER'} the 60 s target)"
-        )
+    Problem.linear_feedback_scan = _timed_scan  # type: ignore[method-assign]
+    try:
+        for label, ident in (
+            ("with the identification sweep (base refitted)", case.identification),
+            ("without it (given model fixed)", None),
+        ):
+            _scans.update(n=0, wall=0.0, cpu=0.0, extra=0.0, extra_cpu=0.0)
+            t0, c0 = time.perf_counter(), time.process_time()
+            rep = diagnose(model, case.recordings, identification=ident)
+            dt = time.perf_counter() - t0 - _scans["extra"]
+            cpu = time.process_time() - c0 - _scans["extra_cpu"]
+            now = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+            print(
+                f"diagnose {label}: {dt:.1f} s wall, {cpu:.1f} s CPU ({cpu / dt:.2f} cores busy "
+                f"on average; load now {now:.1f}), "
+                f"{sum(n) / dt / 1e3:.1f} k samples/s, "
+                f"verdict {rep.verdict}, "
+                f"held-out RMSE {1e3 * rep.rmse_before:.3g} -> {1e3 * rep.rmse_after:.3g} mV "
+                f"({'under' if dt < 60 else 'OVER'} the 60 s target); "
+                f"{_scans['n']} feedback gain scans in C++: {_scans['wall']:.1f} s wall"
+            )
+            if _scans["extra"]:
+                print(f"  {_scans['compared']}")
+    finally:
+        Problem.linear_feedback_scan = _scan  # type: ignore[method-assign]
 
 
 if __name__ == "__main__":

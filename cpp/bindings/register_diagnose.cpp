@@ -1,4 +1,6 @@
-// Bindings of the diagnosis kernels (preisach/play.hpp, preisach/moving.hpp).
+// Bindings of the diagnosis kernels (preisach/play.hpp, preisach/moving.hpp,
+// preisach/feedback_scan.hpp).
+#include <preisach/feedback_scan.hpp>
 #include <preisach/moving.hpp>
 #include <preisach/play.hpp>
 
@@ -84,4 +86,56 @@ void register_diagnose(py::module_& m) {
         },
         py::arg("y"), py::arg("y_lo"), py::arg("y_hi"), py::arg("coefficients"),
         "The uniform cubic B-spline f(y) of simulate_feedback_spline at the outputs y (volts).");
+    m.def(
+        "feedback_gain_scan",
+        [](const Eigen::VectorXd& levels, const std::vector<InArray>& u, const std::vector<InArray>& p,
+           const std::vector<InArray>& y, const std::vector<py::array_t<std::int32_t, py::array::c_style |
+                                                                           py::array::forcecast>>& fold,
+           const std::vector<preisach::State>& states, const InArray& gains, const InArray& zeros, double u_min,
+           double u_max, double ridge, const InArray& theta0, unsigned threads) {
+            const std::size_t R = u.size();
+            if (p.size() != R || y.size() != R || fold.size() != R)
+                throw std::invalid_argument("u, p, y and fold: need one array per recording (got " +
+                                            std::to_string(R) + ", " + std::to_string(p.size()) + ", " +
+                                            std::to_string(y.size()) + ", " + std::to_string(fold.size()) + ")");
+            std::vector<preisach::ScanRecording> recs(R);
+            for (std::size_t i = 0; i < R; ++i) {
+                std::size_t nu = 0, np_ = 0, ny = 0;
+                const double* pu = as_vector(u[i], "u", nu);
+                const double* pp = as_vector(p[i], "p", np_);
+                const double* py_ = as_vector(y[i], "y", ny);
+                if (np_ != nu || ny != nu || fold[i].ndim() != 1 || std::size_t(fold[i].shape(0)) != nu)
+                    throw std::invalid_argument("u, p, y and fold: recording " + std::to_string(i) +
+                                                " needs 1-D arrays of one length");
+                recs[i] = {pu, pp, py_, fold[i].data(), nu};
+            }
+            std::size_t k = 0, kz = 0, nt = 0;
+            const double* pg = as_vector(gains, "gains", k);
+            const double* pz = as_vector(zeros, "zeros", kz);
+            const double* pt = as_vector(theta0, "theta0", nt);
+            if (kz != k)
+                throw std::invalid_argument("zeros: expected " + std::to_string(k) + " values like gains, got " +
+                                            std::to_string(kz));
+            const std::size_t nl = std::size_t(levels.size());
+            const std::size_t n_par = nl >= 2 ? nl * (nl - 1) / 2 + 1 : 1;
+            if (nt != n_par)
+                throw std::invalid_argument("theta0: expected " + std::to_string(n_par) + " values, got " +
+                                            std::to_string(nt));
+            std::vector<double> sse;
+            {
+                py::gil_scoped_release release;
+                sse = preisach::feedback_gain_scan(levels, recs, states, pg, pz, k, u_min, u_max, ridge, pt, threads);
+            }
+            py::array_t<double> out(static_cast<py::ssize_t>(k));
+            std::copy(sse.begin(), sse.end(), out.mutable_data());
+            return out;
+        },
+        py::arg("levels"), py::arg("u"), py::arg("p"), py::arg("y"), py::arg("fold"), py::arg("states"),
+        py::arg("gains"), py::arg("zeros"), py::arg("u_min"), py::arg("u_max"), py::arg("ridge"), py::arg("theta0"),
+        py::arg("threads") = 0,
+        "Training SSE (V^2) of a profiled Preisach fit whose relays see clamp(u + a (p - y0)) (volts), for every "
+        "(gain a, zero y0): one list entry per recording (u, p the feedback signal one sample late, y, fold: 0 a "
+        "row, < 0 state only), states[k * len(u) + i] the initial state of recording i at point k; ridge toward "
+        "theta0 as lam = ridge * trace / p.  The points run on `threads` threads (0: every core), the GIL "
+        "released.");
 }

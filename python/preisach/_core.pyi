@@ -263,6 +263,21 @@ def simulate_feedback_spline(
 def feedback_spline(
     y: ArrayLike, y_lo: float, y_hi: float, coefficients: ArrayLike
 ) -> NDArray[np.float64]: ...
+def feedback_gain_scan(
+    levels: ArrayLike,
+    u: Sequence[ArrayLike],
+    p: Sequence[ArrayLike],
+    y: Sequence[ArrayLike],
+    fold: Sequence[ArrayLike],
+    states: Sequence[State],
+    gains: ArrayLike,
+    zeros: ArrayLike,
+    u_min: float,
+    u_max: float,
+    ridge: float,
+    theta0: ArrayLike,
+    threads: int = 0,
+) -> NDArray[np.float64]: ...
 
 # --- blocks/ (register_blocks.cpp) ---
 class Block:

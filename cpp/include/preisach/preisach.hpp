@@ -23,6 +23,7 @@
 #include "control.hpp"
 #include "daq.hpp"
 #include "everett.hpp"
+#include "feedback_scan.hpp"
 #include "identify.hpp"
 #include "inverse.hpp"
 #include "memory.hpp"

@@ -53,12 +53,14 @@ class History:
 
     def state(self, x: Array) -> State:
         """Return the relays' state after this history, for the relay input ``x`` (V) after it."""
-        first = float(x[0])
+        return self.state_of(float(x[0]), float(np.min(x)), float(np.max(x)))
+
+    def state_of(self, first: float, lo: float, hi: float) -> State:
+        """:meth:`state` for a relay input given by its first value, minimum and maximum (V)."""
         if self.kind == "anhysteretic" and self.anhysteretic is not None:
             return self.anhysteretic.apply([first])
         if self.kind == "session" and self.left is not None:
             return self.left.apply([float(np.clip(first, *self.u_range))])
-        lo, hi = float(np.min(x)), float(np.max(x))
         pts = [lo + f * (hi - lo) for f in self.turns] + [first]
         if self.kind == "range":
             pts = [hi, lo, *pts]

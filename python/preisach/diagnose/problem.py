@@ -281,6 +281,79 @@ class Problem:
             return 0.0, 0.0
         return rg / gg, rg * rg / gg
 
+    def linear_feedback_scan(self, gains: Array, zeros: Array) -> Array | None:
+        """Coarse training SSE (V^2) of the linear feedback ``a (y - y_c)`` at every point, in C++.
+
+        The same numbers as :meth:`sse_many` of the vectors ``(a, 0, 0, y_c)`` of
+        :class:`~preisach.diagnose.candidates.NonCongruenceCandidate` (up to rounding: the
+        weights by a Cholesky factor of the summed normal equations, the prediction from the
+        regressor's rows instead of a simulation of the fitted table), in one call
+        (``preisach._core.feedback_gain_scan``) whose points run on every core with the GIL
+        released.  None when the shortcut does not apply: no profiled weights, a drift, an
+        output block in the fixed chain (its correction follows the relays' input), or a
+        feedback effect already fitted; then use :meth:`sse_many`.  ``gains`` and ``zeros``
+        must lie within the candidate's bounds (see :meth:`clip`).
+        """
+        from .candidates import NonCongruenceCandidate
+        from .effects import OutputFeedback
+
+        ctx = self.ctx
+        todo = [i for i, m in enumerate(self.train) if m.any()]
+        if (
+            not isinstance(self.cand, NonCongruenceCandidate)
+            or self.cand.block_type is not OutputFeedback
+            or not self.profile
+            or self.drift
+            or self.outs
+            or self.feedback_from is None
+            or not todo
+            or any(i not in self.u_in for i in todo)
+        ):
+            return None
+        gains = np.asarray(gains, float)
+        zeros = np.asarray(zeros, float)
+        lo, hi = ctx.model.u_min, ctx.model.u_max
+        us, ps, ys, folds = [], [], [], []
+        per_rec: list[list[Any]] = []  # every point's initial state, by recording
+        for i in todo:
+            fb = self.feedback_from[i]
+            if i not in self._prev:
+                self._prev[i] = ctx.previous(fb)
+            u, prev = self.u_in[i], self._prev[i]
+            us.append(u)
+            ps.append(prev)
+            ys.append(ctx.recs[i].y)
+            folds.append(self._fold(i, True))
+            h = ctx.history(i, self.fixed.base)
+            if h is None:  # a known initial state
+                per_rec.append([ctx.recs[i].state0] * gains.size)
+                continue
+            # an unknown one follows the relays' input (its first value and range), computed
+            # as ``Context._fed_back`` does, a few hundred points at a time
+            sts: list[Any] = []
+            step = max(1, int(4e6 // max(u.size, 1)))
+            for k0 in range(0, gains.size, step):
+                a = gains[k0 : k0 + step, None]
+                x = np.clip(u[None, :] + (prev[None, :] - zeros[k0 : k0 + step, None]) * a, lo, hi)
+                sts += [
+                    h.state_of(float(f), float(mn), float(mx))
+                    for f, mn, mx in zip(x[:, 0], x.min(axis=1), x.max(axis=1))
+                ]
+            per_rec.append(sts)
+        states = [per_rec[j][k] for k in range(gains.size) for j in range(len(todo))]
+        sse = np.asarray(
+            _core.feedback_gain_scan(
+                ctx.levels, us, ps, ys, folds, states, gains, zeros, lo, hi, ctx.ridge, ctx.theta0
+            ),
+            dtype=float,
+        )
+        ctx.n_evals += int(gains.size)
+        n_rows = int(sum(int((fd == 0).sum()) for fd in folds))
+        for k in range(gains.size):  # a candidate's regularisation, as in :meth:`residuals`
+            pen = self.cand.penalty(np.array([gains[k], 0.0, 0.0, zeros[k]]), n_rows)
+            sse[k] += float(pen @ pen) if pen.size else 0.0
+        return sse
+
     def clip(self, x: Array) -> Array:
         """Clip ``x`` just inside the parameter bounds."""
         span = self.hi - self.lo

@@ -1,0 +1,128 @@
+// The linear-feedback gain scan of diagnosis (feedback_scan.hpp) against a brute-force fit:
+// dense regressor rows, ridge normal equations solved directly, residuals summed.
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <doctest/doctest.h>
+
+#include <preisach/feedback_scan.hpp>
+
+#include "helpers.hpp"
+
+using namespace ptest;
+
+namespace {
+
+struct Rec {
+    std::vector<double> u, p, y;
+    std::vector<std::int32_t> fold;
+};
+
+// A moving model (relays see u + a (y_prev - y0), clamped) from `s0`: its output and the
+// output one sample late.
+Rec moving_record(const EverettTable& t, const State& s0, std::vector<double> u, double a, double y0) {
+    Rec r;
+    r.u = std::move(u);
+    Simulator sim(t, s0);
+    double prev = sim.output();
+    for (std::size_t k = 0; k < r.u.size(); ++k) {
+        r.p.push_back(prev);
+        const double x = std::min(std::max(r.u[k] + a * (prev - y0), U_MIN), U_MAX);
+        prev = sim.step(x);
+        r.y.push_back(prev);
+    }
+    for (std::size_t k = 0; k < r.u.size(); ++k) r.fold.push_back(k >= 40 && k % 3 == 0 ? 0 : -1);
+    return r;
+}
+
+double brute_sse(const Eigen::VectorXd& lv, const std::vector<Rec>& recs, const std::vector<State>& s0, double a,
+                 double y0, double ridge, const Eigen::VectorXd& theta0) {
+    const auto p = Eigen::Index(theta0.size());
+    RowMatrixXd G = RowMatrixXd::Zero(p, p);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(p);
+    std::vector<Eigen::VectorXd> rows;
+    std::vector<double> ys;
+    for (std::size_t i = 0; i < recs.size(); ++i) {
+        const Rec& r = recs[i];
+        std::vector<double> x(r.u.size());
+        for (std::size_t k = 0; k < x.size(); ++k) x[k] = std::min(std::max(r.u[k] + a * (r.p[k] - y0), U_MIN), U_MAX);
+        const auto R = preisach::regressor_rows(lv, s0[i], x.data(), x.size(), preisach::InputPolicy::clamp);
+        for (std::size_t k = 0; k < x.size(); ++k) {
+            if (r.fold[k] != 0) continue;
+            Eigen::VectorXd row = Eigen::VectorXd::Zero(p);
+            for (auto q = R.indptr[k]; q < R.indptr[k + 1]; ++q)
+                row[Eigen::Index(R.indices[std::size_t(q)])] = R.data[std::size_t(q)];
+            G += row * row.transpose();
+            b += row * r.y[k];
+            rows.push_back(row);
+            ys.push_back(r.y[k]);
+        }
+    }
+    const double lam = ridge * G.trace() / double(p);
+    G.diagonal().array() += lam;
+    b += lam * theta0;
+    const Eigen::VectorXd theta = G.ldlt().solve(b);
+    double s = 0.0;
+    for (std::size_t q = 0; q < rows.size(); ++q) s += std::pow(ys[q] - rows[q].dot(theta), 2);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("feedback gain scan: the profiled SSE of every gain and zero, as a brute-force fit") {
+    std::mt19937 g(11);
+    const auto lv = nonuniform_levels(7);
+    const EverettTable t = analytic_table(lv);
+    const double a_true = 0.01, y0_true = 5.0;  // the output spans about -3.5 to 18 V
+    const std::vector<State> s0{State::negative_saturation(U_MIN, U_MAX), State::neutral(U_MIN, U_MAX, 0.4)};
+    std::vector<Rec> recs{moving_record(t, s0[0], random_walk(g, 700, 0.0, 0.15), a_true, y0_true),
+                          moving_record(t, s0[1], random_walk(g, 500, 0.5, 0.15), a_true, y0_true)};
+    const std::size_t p = 7 * 6 / 2 + 1;
+    Eigen::VectorXd theta0 = Eigen::VectorXd::Zero(Eigen::Index(p));
+    theta0[Eigen::Index(p - 1)] = Y_MIN;
+    const std::vector<double> gains{-0.02, 0.0, a_true, 0.02, a_true};
+    const std::vector<double> zeros{y0_true, 0.5, y0_true, 12.0, 15.0};
+    std::vector<preisach::ScanRecording> views;
+    for (const Rec& r : recs) views.push_back({r.u.data(), r.p.data(), r.y.data(), r.fold.data(), r.u.size()});
+    std::vector<State> states;
+    for (std::size_t k = 0; k < gains.size(); ++k) states.insert(states.end(), s0.begin(), s0.end());
+    const double ridge = 1e-9;
+    const auto sse = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(),
+                                                  U_MIN, U_MAX, ridge, theta0.data(), 1);
+    REQUIRE(sse.size() == gains.size());
+    double yy = 0.0;
+    for (const Rec& r : recs)
+        for (std::size_t k = 0; k < r.y.size(); ++k) yy += r.fold[k] == 0 ? r.y[k] * r.y[k] : 0.0;
+    for (std::size_t k = 0; k < gains.size(); ++k) {
+        const double ref = brute_sse(lv, recs, s0, gains[k], zeros[k], ridge, theta0);
+        CHECK(sse[k] == doctest::Approx(ref).epsilon(1e-6).scale(1e-12 * yy));
+    }
+    // the true feedback is fitted to rounding (the data are the model's own), the others are not
+    CHECK(sse[2] < 1e-12 * yy);
+    for (std::size_t k : {0, 1, 3, 4}) CHECK(sse[k] > 1e3 * sse[2]);
+    // several threads give the same numbers
+    const auto again = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(),
+                                                    U_MIN, U_MAX, ridge, theta0.data(), 3);
+    for (std::size_t k = 0; k < gains.size(); ++k) CHECK(again[k] == sse[k]);
+}
+
+TEST_CASE("feedback gain scan: errors name the argument") {
+    const auto lv = uniform_levels(4);
+    const std::vector<double> u(10, 0.0), y(10, 1.0);
+    std::vector<std::int32_t> fold(10, 0);
+    const std::vector<preisach::ScanRecording> views{{u.data(), u.data(), y.data(), fold.data(), u.size()}};
+    const std::vector<double> theta0(7, 0.0), gains{0.1}, zeros{0.0};
+    const std::vector<State> one{State::negative_saturation(U_MIN, U_MAX)};
+    const auto run = [&](const std::vector<State>& st, double ridge) {
+        return preisach::feedback_gain_scan(lv, views, st, gains.data(), zeros.data(), 1, U_MIN, U_MAX, ridge,
+                                            theta0.data(), 1);
+    };
+    CHECK_THROWS_WITH_AS(run({}, 1e-7), doctest::Contains("states"), std::invalid_argument);
+    CHECK_THROWS_WITH_AS(run(one, -1.0), doctest::Contains("ridge"), std::invalid_argument);
+    fold[3] = 2;
+    CHECK_THROWS_WITH_AS(run(one, 1e-7), doctest::Contains("fold"), std::invalid_argument);
+}
