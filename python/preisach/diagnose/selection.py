@@ -35,7 +35,9 @@ Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing descriptio
    Creep and sensor drift may qualify on the held-out *holds* instead (the residual about
    each input hold's mean, where no classical model moves: :mod:`preisach.diagnose.holds`),
    and a structural resonance the general linear block does not show keeps its name when
-   its ring shows there and its fitted mode rings by itself (:func:`_rings`).
+   its ring shows there and its fitted mode rings by itself (:func:`_rings`).  A resonance
+   whose ring sits in too few blocks for the sign-flip test qualifies when both folds find
+   the same ringing mode (:func:`_repeated_ring`).
    Selection stops
    when nothing qualifies; candidates that lowered the held-out error by less than
    ``retry_gain`` (2 %) in a step are not tried again in the next.
