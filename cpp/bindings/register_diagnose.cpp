@@ -92,12 +92,17 @@ void register_diagnose(py::module_& m) {
            const std::vector<InArray>& y, const std::vector<py::array_t<std::int32_t, py::array::c_style |
                                                                            py::array::forcecast>>& fold,
            const std::vector<preisach::State>& states, const InArray& gains, const InArray& zeros, double u_min,
-           double u_max, double ridge, const InArray& theta0, unsigned threads) {
+           double u_max, double ridge, const InArray& theta0,
+           const std::vector<std::vector<std::tuple<std::vector<double>, std::vector<double>, double>>>& filters,
+           const preisach::EverettTable* reference, unsigned threads) {
             const std::size_t R = u.size();
             if (p.size() != R || y.size() != R || fold.size() != R)
                 throw std::invalid_argument("u, p, y and fold: need one array per recording (got " +
                                             std::to_string(R) + ", " + std::to_string(p.size()) + ", " +
                                             std::to_string(y.size()) + ", " + std::to_string(fold.size()) + ")");
+            if (!filters.empty() && filters.size() != R)
+                throw std::invalid_argument("filters: need none or one list per recording (" + std::to_string(R) +
+                                            "), got " + std::to_string(filters.size()));
             std::vector<preisach::ScanRecording> recs(R);
             for (std::size_t i = 0; i < R; ++i) {
                 std::size_t nu = 0, np_ = 0, ny = 0;
@@ -107,7 +112,9 @@ void register_diagnose(py::module_& m) {
                 if (np_ != nu || ny != nu || fold[i].ndim() != 1 || std::size_t(fold[i].shape(0)) != nu)
                     throw std::invalid_argument("u, p, y and fold: recording " + std::to_string(i) +
                                                 " needs 1-D arrays of one length");
-                recs[i] = {pu, pp, py_, fold[i].data(), nu};
+                recs[i] = {pu, pp, py_, fold[i].data(), nu, {}};
+                if (!filters.empty())
+                    for (const auto& [fb, fa, mix] : filters[i]) recs[i].filters.push_back({fb, fa, mix});
             }
             std::size_t k = 0, kz = 0, nt = 0;
             const double* pg = as_vector(gains, "gains", k);
@@ -124,7 +131,8 @@ void register_diagnose(py::module_& m) {
             std::vector<double> sse;
             {
                 py::gil_scoped_release release;
-                sse = preisach::feedback_gain_scan(levels, recs, states, pg, pz, k, u_min, u_max, ridge, pt, threads);
+                sse = preisach::feedback_gain_scan(levels, recs, states, pg, pz, k, u_min, u_max, ridge, pt, reference,
+                                                   threads);
             }
             py::array_t<double> out(static_cast<py::ssize_t>(k));
             std::copy(sse.begin(), sse.end(), out.mutable_data());
@@ -132,10 +140,12 @@ void register_diagnose(py::module_& m) {
         },
         py::arg("levels"), py::arg("u"), py::arg("p"), py::arg("y"), py::arg("fold"), py::arg("states"),
         py::arg("gains"), py::arg("zeros"), py::arg("u_min"), py::arg("u_max"), py::arg("ridge"), py::arg("theta0"),
-        py::arg("threads") = 0,
+        py::arg("filters") = std::vector<std::vector<std::tuple<std::vector<double>, std::vector<double>, double>>>{},
+        py::arg("reference").none(true) = nullptr, py::arg("threads") = 0,
         "Training SSE (V^2) of a profiled Preisach fit whose relays see clamp(u + a (p - y0)) (volts), for every "
         "(gain a, zero y0): one list entry per recording (u, p the feedback signal one sample late, y, fold: 0 a "
         "row, < 0 state only), states[k * len(u) + i] the initial state of recording i at point k; ridge toward "
-        "theta0 as lam = ridge * trace / p.  The points run on `threads` threads (0: every core), the GIL "
-        "released.");
+        "theta0 as lam = ridge * trace / p.  filters: per recording, the linear output filters (b, a with a[0] = 1, "
+        "mix: y = x + mix (H x - x), started at rest) between the Preisach output and the reading, linearised about "
+        "the `reference` table.  The points run on `threads` threads (0: every core), the GIL released.");
 }

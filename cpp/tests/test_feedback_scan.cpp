@@ -92,7 +92,7 @@ TEST_CASE("feedback gain scan: the profiled SSE of every gain and zero, as a bru
     for (std::size_t k = 0; k < gains.size(); ++k) states.insert(states.end(), s0.begin(), s0.end());
     const double ridge = 1e-9;
     const auto sse = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(),
-                                                  U_MIN, U_MAX, ridge, theta0.data(), 1);
+                                                  U_MIN, U_MAX, ridge, theta0.data(), nullptr, 1);
     REQUIRE(sse.size() == gains.size());
     double yy = 0.0;
     for (const Rec& r : recs)
@@ -106,7 +106,7 @@ TEST_CASE("feedback gain scan: the profiled SSE of every gain and zero, as a bru
     for (std::size_t k : {0, 1, 3, 4}) CHECK(sse[k] > 1e3 * sse[2]);
     // several threads give the same numbers
     const auto again = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(),
-                                                    U_MIN, U_MAX, ridge, theta0.data(), 3);
+                                                    U_MIN, U_MAX, ridge, theta0.data(), nullptr, 3);
     for (std::size_t k = 0; k < gains.size(); ++k) CHECK(again[k] == sse[k]);
 }
 
@@ -119,10 +119,113 @@ TEST_CASE("feedback gain scan: errors name the argument") {
     const std::vector<State> one{State::negative_saturation(U_MIN, U_MAX)};
     const auto run = [&](const std::vector<State>& st, double ridge) {
         return preisach::feedback_gain_scan(lv, views, st, gains.data(), zeros.data(), 1, U_MIN, U_MAX, ridge,
-                                            theta0.data(), 1);
+                                            theta0.data(), nullptr, 1);
     };
     CHECK_THROWS_WITH_AS(run({}, 1e-7), doctest::Contains("states"), std::invalid_argument);
     CHECK_THROWS_WITH_AS(run(one, -1.0), doctest::Contains("ridge"), std::invalid_argument);
     fold[3] = 2;
     CHECK_THROWS_WITH_AS(run(one, 1e-7), doctest::Contains("fold"), std::invalid_argument);
+    fold[3] = 0;
+    auto filtered = views;
+    filtered[0].filters.push_back({{0.5}, {1.0, -0.5}, 1.0});
+    CHECK_THROWS_WITH_AS(preisach::feedback_gain_scan(lv, filtered, one, gains.data(), zeros.data(), 1, U_MIN, U_MAX,
+                                                      1e-7, theta0.data(), nullptr, 1),
+                         doctest::Contains("reference"), std::invalid_argument);
+    filtered[0].filters[0].a[0] = 2.0;
+    CHECK_THROWS_WITH_AS(preisach::feedback_gain_scan(lv, filtered, one, gains.data(), zeros.data(), 1, U_MIN, U_MAX,
+                                                      1e-7, theta0.data(), nullptr, 1),
+                         doctest::Contains("a[0]"), std::invalid_argument);
+}
+
+namespace {
+
+// y = x + mix (H x - x), H = b / a in direct form I from a constant past at x[0] (at rest).
+std::vector<double> filter_di(const preisach::OutputFilter& f, const std::vector<double>& x) {
+    double sb = 0.0, sa = 0.0;
+    for (double v : f.b) sb += v;
+    for (double v : f.a) sa += v;
+    const double g = sb / sa;
+    std::vector<double> h(x.size()), out(x.size());
+    for (std::size_t n = 0; n < x.size(); ++n) {
+        double acc = 0.0;
+        for (std::size_t j = 0; j < f.b.size(); ++j) acc += f.b[j] * (n >= j ? x[n - j] : x[0]);
+        for (std::size_t j = 1; j < f.a.size(); ++j) acc -= f.a[j] * (n >= j ? h[n - j] : g * x[0]);
+        h[n] = acc;
+        out[n] = x[n] + f.mix * (h[n] - x[n]);
+    }
+    return out;
+}
+
+std::vector<double> chain_di(const std::vector<preisach::OutputFilter>& fs, std::vector<double> x) {
+    for (const auto& f : fs) x = filter_di(f, x);
+    return x;
+}
+
+}  // namespace
+
+TEST_CASE("feedback gain scan with output filters: linearised about the reference, as a brute-force fit") {
+    std::mt19937 g(3);
+    const auto lv = nonuniform_levels(6);
+    const EverettTable t = analytic_table(lv);
+    const double a_true = 0.01, y0_true = 5.0;
+    const State s0 = State::negative_saturation(U_MIN, U_MAX);
+    Rec r = moving_record(t, s0, random_walk(g, 600, 0.0, 0.15), a_true, y0_true);
+    // a first-order lag and a lightly damped second-order filter (half of its output mixed in)
+    const std::vector<preisach::OutputFilter> fs{{{0.4}, {1.0, -0.6}, 1.0},
+                                                 {{0.02, 0.03}, {1.0, -1.7, 0.75}, 0.5}};
+    r.y = chain_di(fs, r.y);  // the reading: the moving model's output through the filters
+    const std::size_t p = 6 * 5 / 2 + 1;
+    Eigen::VectorXd theta0 = Eigen::VectorXd::Zero(Eigen::Index(p));
+    theta0[Eigen::Index(p - 1)] = Y_MIN;
+    // the reference: the true table scaled (the linearisation is then not exact)
+    RowMatrixXd vals = RowMatrixXd::Zero(6, 6);
+    for (Eigen::Index i = 0; i < 6; ++i)
+        for (Eigen::Index j = 0; j < i; ++j) vals(i, j) = 0.9 * E_exact(lv[i], lv[j]);
+    const EverettTable ref(lv, vals, Y_MIN + 0.2);
+    const std::vector<double> gains{a_true, 0.0, -0.01, a_true};
+    const std::vector<double> zeros{y0_true, 0.0, 3.0, 10.0};
+    std::vector<preisach::ScanRecording> views{{r.u.data(), r.p.data(), r.y.data(), r.fold.data(), r.u.size(), fs}};
+    const std::vector<State> states(gains.size(), s0);
+    const double ridge = 1e-9;
+    const auto sse = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(), U_MIN,
+                                                  U_MAX, ridge, theta0.data(), &ref, 2);
+    double yy = 0.0;
+    for (std::size_t k = 0; k < r.y.size(); ++k) yy += r.fold[k] == 0 ? r.y[k] * r.y[k] : 0.0;
+    for (std::size_t k = 0; k < gains.size(); ++k) {
+        std::vector<double> x(r.u.size());
+        for (std::size_t q = 0; q < x.size(); ++q)
+            x[q] = std::min(std::max(r.u[q] + gains[k] * (r.p[q] - zeros[k]), U_MIN), U_MAX);
+        const auto pref = simulate(ref, s0, x);
+        const auto lref = chain_di(fs, pref);
+        const auto R = preisach::regressor_rows(lv, s0, x.data(), x.size(), preisach::InputPolicy::clamp);
+        RowMatrixXd G = RowMatrixXd::Zero(Eigen::Index(p), Eigen::Index(p));
+        Eigen::VectorXd b = Eigen::VectorXd::Zero(Eigen::Index(p));
+        for (std::size_t q = 0; q < x.size(); ++q) {
+            if (r.fold[q] != 0) continue;
+            Eigen::VectorXd row = Eigen::VectorXd::Zero(Eigen::Index(p));
+            for (auto e = R.indptr[q]; e < R.indptr[q + 1]; ++e)
+                row[Eigen::Index(R.indices[std::size_t(e)])] = R.data[std::size_t(e)];
+            G += row * row.transpose();
+            b += row * (r.y[q] - (lref[q] - pref[q]));
+        }
+        const double lam = ridge * G.trace() / double(p);
+        G.diagonal().array() += lam;
+        b += lam * theta0;
+        const Eigen::VectorXd th = G.ldlt().solve(b);
+        RowMatrixXd v = RowMatrixXd::Zero(6, 6);
+        for (std::size_t i = 1; i < 6; ++i)
+            for (std::size_t j = 0; j < i; ++j)
+                v(Eigen::Index(i), Eigen::Index(j)) = th[Eigen::Index(i * (i - 1) / 2 + j)];
+        const EverettTable fitted(lv, v, th[Eigen::Index(p - 1)]);
+        const auto pred = chain_di(fs, simulate(fitted, s0, x));
+        double ref_sse = 0.0;
+        for (std::size_t q = 0; q < x.size(); ++q)
+            if (r.fold[q] == 0) ref_sse += std::pow(r.y[q] - pred[q], 2);
+        CHECK(sse[k] == doctest::Approx(ref_sse).epsilon(1e-6).scale(1e-12 * yy));
+    }
+    // linearised about the true table, the true feedback explains the reading to rounding
+    const auto exact = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(),
+                                                    U_MIN, U_MAX, ridge, theta0.data(), &t, 1);
+    CHECK(exact[0] < 1e-12 * yy);
+    for (std::size_t k : {1, 2, 3}) CHECK(exact[k] > 1e3 * exact[0]);
 }

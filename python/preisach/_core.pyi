@@ -276,6 +276,8 @@ def feedback_gain_scan(
     u_max: float,
     ridge: float,
     theta0: ArrayLike,
+    filters: Sequence[Sequence[tuple[ArrayLike, ArrayLike, float]]] = (),
+    reference: EverettTable | None = None,
     threads: int = 0,
 ) -> NDArray[np.float64]: ...
 

@@ -6,12 +6,16 @@
 //     x_t = clamp(u_t + a_k (p_t - y_k), u_min, u_max)
 // with p_t the feedback signal one sample late (series-parallel form: a measured output, not
 // the simulated one, so the weights are a linear least-squares problem).  The weights theta of
-// the tabulated model (regressor.hpp: y_t = r_t . theta) are solved from the normal equations
+// the tabulated model (regressor.hpp: P_t = r_t . theta) are solved from the normal equations
 // over the rows (fold[t] == 0) of every recording, with a ridge toward theta0,
-//     (sum r_t r_t^T + lam I) theta = sum r_t y_t + lam theta0,  lam = ridge * max(tr / p, 1e-300),
-// tr the trace of the unridged sum; the point's value is sum (y_t - r_t . theta)^2 over those
-// rows.  Samples with fold[t] < 0 only advance the relays.  Every point is independent: they
-// run on several threads (batch.hpp), one boundary pass per point and recording.
+//     (sum r_t r_t^T + lam I) theta = sum r_t z_t + lam theta0,  lam = ridge * max(tr / p, 1e-300),
+// tr the trace of the unridged sum; the point's value is sum (y_t - L(P)_t)^2 over those rows.
+// Without output filters L is the identity and z = y.  With a chain L of linear output filters
+// (each y = x + mix (H x - x), H = b / a in direct form II transposed, started at rest at its
+// first input, as diagnosis' _LinearFilter blocks), the fit is linearised about a reference
+// table: z_t = y_t - (L(P_ref)_t - P_ref_t), P_ref the reference table's output for the same
+// relay input, and the prediction L(P) runs the fitted table.  Samples with fold[t] < 0 only
+// advance the relays.  Every point is independent: they run on several threads (batch.hpp).
 #pragma once
 
 #include <Eigen/Cholesky>
@@ -20,34 +24,126 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "batch.hpp"
+#include "everett.hpp"
 #include "regressor.hpp"
+#include "simulator.hpp"
 #include "types.hpp"
 
 namespace preisach {
 
+// A linear output filter y = x + mix (H x - x), H(z) = b(z) / a(z) with a[0] = 1.
+struct OutputFilter {
+    std::vector<double> b, a;
+    double mix = 1.0;
+
+    void validate() const {
+        if (b.empty() || a.empty()) throw std::invalid_argument("filters: b and a need at least one coefficient");
+        if (a[0] != 1.0) throw std::invalid_argument("filters: a[0] must be 1, got " + std::to_string(a[0]));
+        for (double v : b)
+            if (!std::isfinite(v)) throw std::invalid_argument("filters: b is not finite");
+        for (double v : a)
+            if (!std::isfinite(v)) throw std::invalid_argument("filters: a is not finite");
+        if (!std::isfinite(mix)) throw std::invalid_argument("filters: mix is not finite");
+    }
+};
+
+// One filter running (direct form II transposed, as scipy.signal.lfilter).
+class FilterRun {
+public:
+    explicit FilterRun(const OutputFilter& f) {
+        const std::size_t n = std::max(f.a.size(), f.b.size());
+        b_.assign(n, 0.0);
+        a_.assign(n, 0.0);
+        std::copy(f.b.begin(), f.b.end(), b_.begin());
+        std::copy(f.a.begin(), f.a.end(), a_.begin());
+        mix_ = f.mix;
+        z_.assign(n - 1, 0.0);
+        // at rest with a unit input: z_k = sum_{j > k} (b_j - a_j g), g = sum b / sum a
+        double sb = 0.0, sa = 0.0;
+        for (std::size_t j = 0; j < n; ++j) {
+            sb += b_[j];
+            sa += a_[j];
+        }
+        const double g = sb / sa;
+        unit_.assign(n - 1, 0.0);
+        double acc = 0.0;
+        for (std::size_t j = n - 1; j >= 1; --j) {
+            acc += b_[j] - a_[j] * g;
+            unit_[j - 1] = acc;
+        }
+    }
+    void start(double x0) {
+        for (std::size_t k = 0; k < z_.size(); ++k) z_[k] = unit_[k] * x0;
+    }
+    double step(double x) {
+        const std::size_t m = z_.size();
+        const double h = b_[0] * x + (m ? z_[0] : 0.0);
+        for (std::size_t k = 0; k + 1 < m; ++k) z_[k] = b_[k + 1] * x + z_[k + 1] - a_[k + 1] * h;
+        if (m) z_[m - 1] = b_[m] * x - a_[m] * h;
+        return x + mix_ * (h - x);
+    }
+
+private:
+    std::vector<double> b_, a_, z_, unit_;
+    double mix_ = 1.0;
+};
+
 // One recording of the scan (views, not copies): applied input u (V), feedback signal one
-// sample late p (V), measured output y (V), fold labels (0: a row, < 0: state only), n samples.
+// sample late p (V), measured output y (V), fold labels (0: a row, < 0: state only), n
+// samples; the output filters between the Preisach output and the reading, in order.
 struct ScanRecording {
     const double* u;
     const double* p;
     const double* y;
     const std::int32_t* fold;
     std::size_t n;
+    std::vector<OutputFilter> filters{};
 };
 
+namespace detail {
+
+// The chain of a recording's filters, each started at rest at its first input.
+struct FilterChain {
+    std::vector<FilterRun> runs;
+    bool started = false;
+    explicit FilterChain(const std::vector<OutputFilter>& f) {
+        for (const auto& x : f) runs.emplace_back(x);
+    }
+    double step(double x) {
+        for (auto& r : runs) {
+            if (!started) r.start(x);
+            x = r.step(x);
+        }
+        started = true;
+        return x;
+    }
+};
+
+}  // namespace detail
+
 // Training SSE (V^2) of every scan point (see the file comment).  states[k * R + i] is the
-// relays' initial state of recording i (of R) at point k; theta0 has n_params entries.
+// relays' initial state of recording i (of R) at point k; theta0 has n_params entries;
+// `reference` (the table the output filters are linearised about) is needed when a recording
+// has filters.
 inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std::vector<ScanRecording>& recs,
                                               const std::vector<State>& states, const double* gains,
                                               const double* zeros, std::size_t n_points, double u_min,
                                               double u_max, double ridge, const double* theta0,
-                                              unsigned threads = 0) {
+                                              const EverettTable* reference = nullptr, unsigned threads = 0) {
     const std::size_t R = recs.size();
+    bool filtered = false;
+    for (const auto& r : recs) {
+        for (const auto& f : r.filters) f.validate();
+        filtered = filtered || !r.filters.empty();
+    }
+    if (filtered && reference == nullptr)
+        throw std::invalid_argument("reference: output filters need the reference table");
     if (states.size() != n_points * R)
         throw std::invalid_argument("states: need one per point and recording (" + std::to_string(n_points * R) +
                                     "), got " + std::to_string(states.size()));
@@ -83,11 +179,19 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
                 G = RowMatrixXd::Zero(Eigen::Index(p), Eigen::Index(p));
                 b = Eigen::VectorXd::Zero(Eigen::Index(p));
             }
+            const bool lin = !r.filters.empty();
+            std::optional<Simulator> ref;
+            if (lin) ref.emplace(*reference, states[k * R + i]);
+            detail::FilterChain chain(r.filters);
             for (std::size_t t = 0; t < r.n; ++t) {
                 const double x = std::min(std::max(r.u[t] + a * (r.p[t] - yk), u_min), u_max);
                 reg.step(x, InputPolicy::clamp, t);
+                double yt = r.y[t];
+                if (lin) {  // the output filters' correction at the reference table
+                    const double pr = ref->step(x);
+                    yt -= chain.step(pr) - pr;
+                }
                 if (r.fold[t] < 0) continue;
-                const double yt = r.y[t];
                 const auto& ix = reg.row_index();
                 const auto& vx = reg.row_value();
                 for (std::size_t c = 0; c < ix.size(); ++c) {
@@ -96,6 +200,7 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
                     for (std::size_t e = c; e < ix.size(); ++e) row[ix[e]] += vc * vx[e];  // upper triangle
                     b[Eigen::Index(ix[c])] += vc * yt;
                 }
+                if (filtered) continue;  // the residuals come from a simulation below
                 idx.insert(idx.end(), ix.begin(), ix.end());
                 val.insert(val.end(), vx.begin(), vx.end());
                 yrow.push_back(yt);
@@ -110,6 +215,29 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
         if (llt.info() != Eigen::Success)
             throw std::invalid_argument("point " + std::to_string(k) + ": the normal equations are not definite");
         const Eigen::VectorXd theta = llt.solve(b);
+        if (filtered) {  // run the fitted table and the filters; residuals at the rows
+            const std::size_t nl = std::size_t(levels.size());
+            RowMatrixXd v = RowMatrixXd::Zero(Eigen::Index(nl), Eigen::Index(nl));
+            for (std::size_t ii = 1; ii < nl; ++ii)
+                for (std::size_t jj = 0; jj < ii; ++jj)
+                    v(Eigen::Index(ii), Eigen::Index(jj)) = theta[Eigen::Index(EverettRegressor::node_index(ii, jj))];
+            const EverettTable table(levels, v, theta[Eigen::Index(p - 1)]);
+            double s = 0.0;
+            for (std::size_t i = 0; i < R; ++i) {
+                const ScanRecording& r = recs[i];
+                Simulator sim(table, states[k * R + i]);
+                detail::FilterChain chain(r.filters);
+                for (std::size_t t = 0; t < r.n; ++t) {
+                    const double x = std::min(std::max(r.u[t] + a * (r.p[t] - yk), u_min), u_max);
+                    const double out = chain.step(sim.step(x));
+                    if (r.fold[t] < 0) continue;
+                    const double res = r.y[t] - out;
+                    s += res * res;
+                }
+            }
+            sse[k] = s;
+            return;
+        }
         double s = 0.0;
         for (std::size_t q = 0; q + 1 < ptr.size(); ++q) {
             double pred = 0.0;

@@ -289,22 +289,24 @@ class Problem:
         weights by a Cholesky factor of the summed normal equations, the prediction from the
         regressor's rows instead of a simulation of the fitted table), in one call
         (``preisach._core.feedback_gain_scan``) whose points run on every core with the GIL
-        released.  None when the shortcut does not apply: no profiled weights, a drift, an
-        output block in the fixed chain (its correction follows the relays' input), or a
-        feedback effect already fitted; then use :meth:`sse_many`.  ``gains`` and ``zeros``
-        must lie within the candidate's bounds (see :meth:`clip`).
+        released.  Output blocks in the fixed chain that are linear filters run in C++ too
+        (linearised about the reference base as :meth:`theta` does).  None when the shortcut
+        does not apply: no profiled weights, a drift, another output block, or a feedback
+        effect already fitted; then use :meth:`sse_many`.  ``gains`` and ``zeros`` must lie
+        within the candidate's bounds (see :meth:`clip`).
         """
         from .candidates import NonCongruenceCandidate
         from .effects import OutputFeedback
 
         ctx = self.ctx
         todo = [i for i, m in enumerate(self.train) if m.any()]
+        filters = self._linear_filters(todo)
         if (
             not isinstance(self.cand, NonCongruenceCandidate)
             or self.cand.block_type is not OutputFeedback
             or not self.profile
             or self.drift
-            or self.outs
+            or filters is None
             or self.feedback_from is None
             or not todo
             or any(i not in self.u_in for i in todo)
@@ -343,9 +345,22 @@ class Problem:
         states = [per_rec[j][k] for k in range(gains.size) for j in range(len(todo))]
         sse = np.asarray(
             _core.feedback_gain_scan(
-                ctx.levels, us, ps, ys, folds, states, gains, zeros, lo, hi, ctx.ridge, ctx.theta0
+                ctx.levels,
+                us,
+                ps,
+                ys,
+                folds,
+                states,
+                gains,
+                zeros,
+                lo,
+                hi,
+                ctx.ridge,
+                ctx.theta0,
+                filters=filters,
+                reference=ctx.table(self.fixed.base) if any(filters) else None,
             ),
-            dtype=float,
+            dtype=np.float64,
         )
         ctx.n_evals += int(gains.size)
         n_rows = int(sum(int((fd == 0).sum()) for fd in folds))
@@ -353,6 +368,31 @@ class Problem:
             pen = self.cand.penalty(np.array([gains[k], 0.0, 0.0, zeros[k]]), n_rows)
             sse[k] += float(pen @ pen) if pen.size else 0.0
         return sse
+
+    def _linear_filters(self, todo: list[int]) -> list[list[tuple[Array, Array, float]]] | None:
+        """Return the fixed output blocks of each recording as linear filters ``(b, a, mix)``.
+
+        None unless every one is a linear filter run by the candidates' own :meth:`apply`
+        (from rest at its first input: :class:`~preisach.diagnose.effects._LinearFilter`);
+        ``a`` normalised to ``a[0] = 1`` as :func:`scipy.signal.lfilter` does.
+        """
+        from .candidates import Candidate as _Candidate
+        from .effects import _LinearFilter
+
+        outs = sorted(self.outs, key=lambda e: e.cand.order)
+        if any(type(e.cand).apply is not _Candidate.apply for e in outs):
+            return None
+        per_rec = []
+        for i in todo:
+            chain = []
+            for e in outs:
+                blk = e.cand.block(e.x, self.ctx.recs[i].dt)
+                if not isinstance(blk, _LinearFilter):
+                    return None
+                b, a = np.asarray(blk._b, float), np.asarray(blk._a, float)
+                chain.append((b / a[0], a / a[0], float(blk._mix)))
+            per_rec.append(chain)
+        return per_rec
 
     def clip(self, x: Array) -> Array:
         """Clip ``x`` just inside the parameter bounds."""
