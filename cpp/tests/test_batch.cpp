@@ -8,6 +8,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_batch {
+
 using namespace ptest;
 using preisach::InputPolicy;
 using preisach::run_batch;
@@ -112,3 +116,5 @@ TEST_CASE("batch: errors name the row") {
     CHECK_THROWS_WITH_AS(run_batch(t, two, b.U.data(), Y.data(), b.m, b.n, InputPolicy::raise, 2),
                          doctest::Contains("one state or one per input row (6), got 2"), std::invalid_argument);
 }
+
+}  // namespace unity_test_batch

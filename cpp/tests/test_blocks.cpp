@@ -11,6 +11,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_blocks {
+
 using namespace preisach::blocks;
 using preisach::EverettTable;
 using preisach::Simulator;
@@ -204,3 +208,5 @@ TEST_CASE("chain: run equals stepping, copies are independent, sample times must
     bad.push_back(std::make_unique<Delay>(2e-3, 1));
     CHECK_THROWS_AS(Chain(std::move(bad)), std::invalid_argument);
 }
+
+}  // namespace unity_test_blocks

@@ -13,6 +13,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_control {
+
 using namespace ptest;
 using preisach::ClosedLoopConfig;
 using preisach::InputPolicy;
@@ -228,3 +232,5 @@ TEST_CASE("neutral locus: N(l) is the readout of psi_n^l, runs from y_min to y_m
     double bad = U_MAX + 1.0;
     CHECK_THROWS_AS(preisach::neutral_locus(t, &bad, N.data(), 1), std::invalid_argument);
 }
+
+}  // namespace unity_test_control

@@ -22,6 +22,10 @@
 #include <preisach/blocks.hpp>
 #include <preisach/daq.hpp>
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_daq {
+
 using namespace preisach::daq;
 namespace pb = preisach::blocks;
 using preisach::EverettTable;
@@ -593,3 +597,5 @@ TEST_CASE("comedi device: protocol mismatch and a missing device file are clear 
         CHECK_THROWS_AS(make_comedilib_api("/dev/comedi0"), DeviceError);
     }
 }
+
+}  // namespace unity_test_daq

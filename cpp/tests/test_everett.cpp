@@ -10,6 +10,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_everett {
+
 using namespace ptest;
 using preisach::cell_weights;
 using preisach::everett_from_fod;
@@ -312,3 +316,5 @@ TEST_CASE("everett: antidiagonal_integral equals a Riemann sum of -dE/dbeta") {
         CHECK(t.antidiagonal_integral(c, U_MIN, 0.5 * c) > 0.0);
     }
 }
+
+}  // namespace unity_test_everett

@@ -13,6 +13,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_feedback_scan {
+
 using namespace ptest;
 
 namespace {
@@ -229,3 +233,5 @@ TEST_CASE("feedback gain scan with output filters: linearised about the referenc
     CHECK(exact[0] < 1e-12 * yy);
     for (std::size_t k : {1, 2, 3}) CHECK(exact[k] > 1e3 * exact[0]);
 }
+
+}  // namespace unity_test_feedback_scan

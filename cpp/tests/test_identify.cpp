@@ -17,6 +17,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_identify {
+
 using namespace ptest;
 using preisach::accumulate_normal_equations;
 using preisach::cell_weights;
@@ -357,3 +361,5 @@ TEST_CASE("normal equations: per-fold sums of r r^T, r y and y^2, and fold -1 on
               accumulate_normal_equations(lv, s0, u.data(), y.data(), badfold.data(), u.size(), 3, InputPolicy::clamp);
           }).find("fold[0]") != std::string::npos);
 }
+
+}  // namespace unity_test_identify

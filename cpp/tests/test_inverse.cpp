@@ -12,6 +12,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_inverse {
+
 using namespace ptest;
 using preisach::Inverter;
 
@@ -224,3 +228,5 @@ TEST_CASE("inverse: a reference returning exactly to an extremum or a saturation
         }
     }
 }
+
+}  // namespace unity_test_inverse

@@ -12,6 +12,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_inverse_search {
+
 using namespace ptest;
 using preisach::Inverter;
 
@@ -123,3 +127,5 @@ TEST_CASE("inverse: a long random reference on a 201-level table, step by step")
         CHECK(over == 0);
     }
 }
+
+}  // namespace unity_test_inverse_search

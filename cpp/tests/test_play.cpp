@@ -11,6 +11,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_play {
+
 namespace {
 
 std::vector<double> play(const std::vector<double>& x, const std::vector<double>& w, double z0) {
@@ -162,3 +166,5 @@ TEST_CASE("feedback spline model: a straight-line spline is the linear moving mo
                                                        ue.data()),
                     std::invalid_argument);
 }
+
+}  // namespace unity_test_play

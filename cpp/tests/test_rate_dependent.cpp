@@ -13,6 +13,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_rate_dependent {
+
 using namespace ptest;
 using preisach::ClosedLoopConfig;
 using preisach::InputPolicy;
@@ -397,3 +401,5 @@ TEST_CASE("rate stage: the PI loop around a chain is the rate model's closed loo
         REQUIRE(c1[k] == c2[k]);
     }
 }
+
+}  // namespace unity_test_rate_dependent

@@ -13,6 +13,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_simulator {
+
 using namespace ptest;
 using preisach::apply_inputs;
 using preisach::InputPolicy;
@@ -444,3 +448,5 @@ TEST_CASE("simulator: the neutral state is the limit of a decaying oscillation")
         CHECK(resp_err[2] < 1e-3);
     }
 }
+
+}  // namespace unity_test_simulator

@@ -8,6 +8,10 @@
 
 #include "helpers.hpp"
 
+// One namespace per file: the unity build of the tests (CMakeLists.txt) compiles several
+// files as one unit.
+namespace unity_test_state {
+
 using namespace ptest;
 using preisach::apply_inputs;
 
@@ -190,3 +194,5 @@ TEST_CASE("state: apply_inputs builds the documented boundary") {
     // Inputs are checked.
     CHECK_THROWS_WITH_AS(apply_inputs(n, {0.1, 1.5}), doctest::Contains("u[1]"), std::invalid_argument);
 }
+
+}  // namespace unity_test_state
