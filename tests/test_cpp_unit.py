@@ -3,6 +3,8 @@
 The build directory is ``build/cpp-tests`` in the repository (ignored by git through
 ``build/``), so repeated runs only rebuild what changed.  Without cmake or doctest the test
 is skipped, unless ``PREISACH_REQUIRE_CPP_TESTS=1`` (set in CI), in which case it fails.
+The tests are a unity build at -O1 (cpp/tests/CMakeLists.txt): each test file keeps its
+definitions in its own ``namespace unity_<file>``, checked here before the build.
 """
 
 from __future__ import annotations
@@ -90,7 +92,22 @@ def _build_lock():
             fcntl.flock(fh, fcntl.LOCK_UN)
 
 
+def _missing_unity_namespace() -> list[str]:
+    """Test files (besides main.cpp and test_umbrella.cpp) without their own namespace."""
+    return [
+        src.name
+        for src in sorted((ROOT / "cpp" / "tests").glob("test_*.cpp"))
+        if src.name != "test_umbrella.cpp"
+        and f"namespace unity_{src.stem} {{" not in src.read_text()
+    ]
+
+
 def test_cpp_unit_tests() -> None:
+    missing = _missing_unity_namespace()
+    assert not missing, (
+        f"{missing}: wrap each C++ test file's body (after its includes) in "
+        "'namespace unity_<file stem> { ... }': the unity build compiles several files as one unit"
+    )
     cmake = shutil.which("cmake")
     ctest = shutil.which("ctest")
     if cmake is None or ctest is None:
