@@ -622,7 +622,7 @@ def _wander_drift(
         parameters={
             "wander_rms": {"value": wander.wander_rms, "std": float("nan"), "unit": "V"},
         },
-        heldout_rmse_before=wander.still_ratio * sigma,
+        heldout_rmse_before=wander.base_ratio * sigma,
         heldout_rmse_after=wander.ratio * sigma,
         holds={**wander.as_dict(), "qualified": True},
     )

@@ -285,26 +285,14 @@ WANDER_STRETCH = 0.05
 
 
 @dataclass(frozen=True)
-class HoldWander:
-    """How well the output's motion within the holds predicts itself (:func:`hold_wander`)."""
+class HoldWander(HoldEvidence):
+    """How well the output's motion within the holds predicts itself (:func:`hold_wander`).
 
-    n_pieces: int
-    seconds: float
-    still_ratio: float  # held-out RMS about the piece's level (fitted on the other stretches)
-    ratio: float  # held-out RMS about the neighbouring stretches' levels / noise
-    gain: float  # relative reduction of that RMS
-    explained: float  # mean-square reduction / noise variance
-    p_value: float  # one-sided sign-flip test over the pieces
-    wander_rms: float  # RMS of the wander about each hold's level beyond the noise (V)
+    ``base_ratio`` is the held-out RMS (x the noise) of a still output at each hold's level,
+    ``ratio`` that of each stretch's level taken from its neighbours.
+    """
 
-    def qualifies(self, alpha: float) -> bool:
-        """Whether the holds show a smooth motion that predicts held-out stretches."""
-        return (
-            self.n_pieces >= HOLD_MIN_PIECES
-            and self.gain >= HOLD_MIN_GAIN
-            and self.explained >= HOLD_MIN_EXPLAINED
-            and self.p_value < alpha
-        )
+    wander_rms: float = 0.0  # RMS of the wander about each hold's level beyond the noise (V)
 
     def statement(self) -> str:
         """One line: the evidence in words."""
@@ -312,24 +300,14 @@ class HoldWander:
         return (
             f"within {self.n_pieces} input holds ({self.seconds:.3g} s) the level of each "
             f"{ms:.0f} ms stretch, taken from its two neighbours, predicts it at "
-            f"{self.ratio:.3g} x the noise, against {self.still_ratio:.3g} x for a still output "
+            f"{self.ratio:.3g} x the noise, against {self.base_ratio:.3g} x for a still output "
             f"at the hold's level ({100 * self.gain:.0f} % lower, sign-flip p = "
             f"{self.p_value:.2g} over the pieces)"
         )
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready fields."""
-        return {
-            "pieces": self.n_pieces,
-            "seconds": self.seconds,
-            "base_ratio": self.still_ratio,
-            "ratio": self.ratio,
-            "gain": self.gain,
-            "explained_noise_variances": self.explained,
-            "p_value": self.p_value,
-            "wander_rms": self.wander_rms,
-            "stretch_s": WANDER_STRETCH,
-        }
+        return {**super().as_dict(), "wander_rms": self.wander_rms, "stretch_s": WANDER_STRETCH}
 
 
 def wander_curves(score: Score, holds: HoldPieces, dt: Sequence[float]) -> list[Array]:
