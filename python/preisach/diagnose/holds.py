@@ -19,7 +19,7 @@ one held-out block); :func:`hold_evidence` compares two chains' held-out residua
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -310,6 +310,21 @@ class HoldWander(HoldEvidence):
         return {**super().as_dict(), "wander_rms": self.wander_rms, "stretch_s": WANDER_STRETCH}
 
 
+def _stretched(
+    score: Score, holds: HoldPieces, dt: Sequence[float]
+) -> Iterator[tuple[int, int, Array, int]]:
+    """Hold pieces of at least three whole stretches: (recording, first sample, residual, n).
+
+    The residual is cut to whole :data:`WANDER_STRETCH` stretches of ``n`` samples.
+    """
+    for i, a, b in holds.pieces:
+        res = score.residuals[i][a:b]
+        n = max(int(round(WANDER_STRETCH / dt[i])), 1)
+        k = res.size // n
+        if k >= 3 and not np.isnan(res).any():
+            yield i, a, res[: k * n], n
+
+
 def wander_curves(score: Score, holds: HoldPieces, dt: Sequence[float]) -> list[Array]:
     """Per recording: each hold stretch's level taken from its neighbours (0 outside holds).
 
@@ -318,17 +333,11 @@ def wander_curves(score: Score, holds: HoldPieces, dt: Sequence[float]) -> list[
     sample is predicted from itself.
     """
     out = [np.zeros(r.size) for r in score.residuals]
-    for i, a, b in holds.pieces:
-        res = score.residuals[i][a:b]
-        n = max(int(round(WANDER_STRETCH / dt[i])), 1)
-        k = res.size // n
-        if k < 3 or np.isnan(res).any():
-            continue
-        means = res[: k * n].reshape(k, n).mean(axis=1)
+    for i, a, r, n in _stretched(score, holds, dt):
+        means = r.reshape(-1, n).mean(axis=1)
         left = np.r_[means[1], means[:-1]]
         right = np.r_[means[1:], means[-2]]
-        pred = np.repeat(0.5 * (left + right), n)
-        out[i][a : a + k * n] = pred
+        out[i][a : a + r.size] = np.repeat(0.5 * (left + right), n)
     return out
 
 
@@ -351,17 +360,11 @@ def hold_wander(
         return None
     local = wander_curves(score, holds, dt)
     s_still, s_local, cnt, secs = [], [], [], 0.0
-    for i, a, b in holds.pieces:
-        res = score.residuals[i][a:b]
-        n = max(int(round(WANDER_STRETCH / dt[i])), 1)
-        k = res.size // n
-        if k < 3 or np.isnan(res).any():
-            continue
-        r = res[: k * n]
-        sums = r.reshape(k, n).sum(axis=1)
-        others = (sums.sum() - sums) / (n * (k - 1))  # each stretch's level from the others
+    for i, a, r, n in _stretched(score, holds, dt):
+        sums = r.reshape(-1, n).sum(axis=1)
+        others = (sums.sum() - sums) / (r.size - n)  # each stretch's level from the others
         e_still = r - np.repeat(others, n)
-        e_local = r - local[i][a : a + k * n]
+        e_local = r - local[i][a : a + r.size]
         s_still.append(float(e_still @ e_still))
         s_local.append(float(e_local @ e_local))
         cnt.append(r.size)
