@@ -203,3 +203,17 @@ def test_rate_family_base_is_held_by_the_contexts_ridge():
     cand.prepare(ctx)
     family = cand.fit_chain(ctx, base, fold.train, False)
     assert heldout(family) < 0.8 * heldout(base), (heldout(family), heldout(base))
+
+
+def test_a_rate_form_that_does_not_grow_with_the_rate_is_not_rate_dependence():
+    """A loop width or threshold dilation fitted with a rate exponent near 0 is the same at
+    every rate: a rate-independent change of the loops (seed-11 blind null 008 was named
+    rate dependence by a loop width scaling as rate^0.0003)."""
+    from typing import Any
+
+    from preisach.diagnose.candidates import RateCandidate, RateWidthCandidate
+
+    ctx: Any = None  # the check reads only the fitted parameters
+    for cand in (RateWidthCandidate(), RateCandidate()):
+        assert "rate-independent" in (cand.implausible(np.array([0.01, 0.0003]), ctx) or "")
+        assert cand.implausible(np.array([0.01, 0.44]), ctx) is None

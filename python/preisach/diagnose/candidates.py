@@ -391,6 +391,22 @@ class RateLagCandidate(Candidate):
         )
 
 
+#: Least exponent of the rate in a rate-dependence form: below it the fitted change does not
+#: grow with the rate (a rate-independent change of the loops, not rate dependence).
+MIN_RATE_EXPONENT = 0.1
+
+
+def _flat_in_rate(exponent: float) -> str | None:
+    """Why a rate form whose change does not grow with the rate is not rate dependence."""
+    if exponent < MIN_RATE_EXPONENT:
+        return (
+            f"the fitted change grows with the input rate as rate^{exponent:.2g} "
+            f"(< {MIN_RATE_EXPONENT:g}): the same at every rate, a rate-independent change of "
+            "the loops, not rate dependence"
+        )
+    return None
+
+
 class RateCandidate(Candidate):
     """Rate-dependent hysteresis: relay thresholds move apart with the input rate."""
 
@@ -417,6 +433,9 @@ class RateCandidate(Candidate):
 
     def params(self, x: Array) -> dict[str, Any]:
         return {"w_ref": max(float(x[0]), 0.0), "exponent": max(float(x[1]), 0.0), **self.fixed}
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        return _flat_in_rate(max(float(x[1]), 0.0))
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         v = self.fixed["v_ref"]
@@ -452,6 +471,9 @@ class RateWidthCandidate(Candidate):
 
     def params(self, x: Array) -> dict[str, Any]:
         return {"c": float(x[0]), "exponent": max(float(x[1]), 0.0), **self.fixed}
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        return _flat_in_rate(max(float(x[1]), 0.0))
 
     def apply(self, x: Array, signal_in: Array, dt: float, stage: Stage, ctx: Context) -> Array:
         b = cast(RateDependentWidth, self.block(x, dt))
