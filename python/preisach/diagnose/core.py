@@ -603,7 +603,10 @@ def _wander_drift(
     if wander is None or not wander.qualifies(alpha):
         return None
     curves = wander_curves(sel.steps[-1].baseline, sel.holds, dts)
-    block = max((r.t[-1] - r.t[0]) / (r.block.max() - r.block.min() + 1) for r in ctx.recs)
+    block = max(
+        (r.t[-1] - r.t[0]) / (r.block.max() - r.block.min() + 1)
+        for r in (ctx.recs[i] for i in ctx.diag)
+    )
     amount = amount_text(wander.wander_rms, ctx.output_unit, ".2g")
     return EffectReport(
         name="sensor_drift",
@@ -620,7 +623,11 @@ def _wander_drift(
         ),
         where=where_of([ctx.recs[i] for i in ctx.diag], [curves[i] for i in ctx.diag], ctx.u_span),
         parameters={
-            "wander_rms": {"value": wander.wander_rms, "std": float("nan"), "unit": "V"},
+            "wander_rms": {
+                "value": wander.wander_rms,
+                "std": float("nan"),
+                "unit": ctx.output_unit or "V",
+            },
         },
         heldout_rmse_before=wander.base_ratio * sigma,
         heldout_rmse_after=wander.ratio * sigma,
