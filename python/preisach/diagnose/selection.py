@@ -146,6 +146,11 @@ def _implausible(ctx: Context, cand: Candidate, chains: list[Chain]) -> str | No
     return None
 
 
+def _fold_fits(cand: Candidate, chains: list[Chain]) -> list[np.ndarray]:
+    """Return the parameters ``cand`` was fitted with in every fold whose last effect it is."""
+    return [ch.effects[-1].x for ch in chains if ch.effects and ch.effects[-1].cand is cand]
+
+
 def _rings(cand: Candidate, chains: list[Chain], pieces: HoldPieces) -> bool:
     """Whether every fold's fitted mode rings by its own parameters within the holds.
 
@@ -157,7 +162,7 @@ def _rings(cand: Candidate, chains: list[Chain], pieces: HoldPieces) -> bool:
         return False
     min_f = 2.0 / float(np.median(pieces.seconds))
     max_zeta = float(getattr(cand, "MAX_ZETA", 0.3))
-    fits = [ch.effects[-1].x for ch in chains if ch.effects and ch.effects[-1].cand is cand]
+    fits = _fold_fits(cand, chains)
     for x in fits:
         par = cand.params(x)
         f, z = par.get("f_n"), par.get("zeta")
@@ -195,9 +200,7 @@ def _repeated_ring(
     """
     if sigma <= 0 or not _rings(cand, chains, pieces):
         return None
-    fits = [
-        cand.params(ch.effects[-1].x) for ch in chains if ch.effects and ch.effects[-1].cand is cand
-    ]
+    fits = [cand.params(x) for x in _fold_fits(cand, chains)]
     if len(fits) < 2:
         return None
     f = np.array([p["f_n"] for p in fits], float)
