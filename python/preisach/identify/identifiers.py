@@ -21,7 +21,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Union
+from typing import Any, Callable, Union
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,7 +29,13 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _core
 from ..initial_state import InitialState, check_policy
 from ..model import PreisachModel
-from ..recording import Recording, RecordingsInput, as_recordings, recording_labels
+from ..recording import (
+    Recording,
+    RecordingsInput,
+    SampledData,
+    as_recordings,
+    recording_labels,
+)
 from .delay import DelayEstimate, estimate_delay, shift_output
 from .fod_finder import FODData, find_fod_curves
 from .lsq import LsqDetails, identify_lsq_core, weights_matrix
@@ -296,20 +302,28 @@ def _resolve_delay(
 
 
 def _delay_recordings(
-    recs: list[Recording], delay: Delay, initial_state: InitialState, integer_native: bool = False
+    recs: list[Recording],
+    delay: Delay,
+    initial_state: InitialState,
+    integer_native: bool = False,
+    score: Callable[[list[SampledData]], float] | None = None,
+    score_name: str = "",
 ) -> tuple[list[Recording], float, DelayEstimate | None, float]:
     """Apply (or estimate, for ``None``/``"auto"``) the output delay; see :mod:`.delay`.
 
     Returns ``(recordings, delay, estimate, native)``: the recordings with the delay applied by
     :func:`shift_output` (unchanged when it is 0, or when ``integer_native`` and it is an
     integer - the caller then applies ``native`` itself), the delay (samples), how it was
-    estimated, and the delay left for the caller.
+    estimated, and the delay left for the caller.  ``score``, ``score_name``: how an estimate
+    scores each delay (:func:`~preisach.identify.delay.estimate_delay`).
     """
     names = _unique_names(recs)
     _check_lengths(recs, names)
     est = None
     if delay is None or delay == "auto":
-        est = estimate_delay(recs, initial_state=initial_state, names=names)
+        est = estimate_delay(
+            recs, initial_state=initial_state, names=names, score=score, score_name=score_name
+        )
         d = est.delay
     elif isinstance(delay, str) or isinstance(delay, bool):
         raise ValueError(f"delay: expected a number of samples >= 0 or 'auto', got {delay!r}")
