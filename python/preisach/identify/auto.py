@@ -11,8 +11,9 @@
 * anything else (periodic drives, noise, a few minor loops): least squares on every sample
   (:func:`~preisach.identify.identify_lsq`), which needs no particular excitation.
 
-The report's ``choice`` says which method ran and why (the coverage found).  The output delay
-is estimated first (unless given) and applied to whichever method runs.
+The report's ``choice`` says which method ran and why (the coverage found).  The method is
+chosen on the recordings as given; the output delay is then estimated (unless given) - for the
+FOD method by the Mayergoyz model's own residual - and applied to whichever method runs.
 """
 
 from __future__ import annotations
@@ -156,7 +157,10 @@ def identify(
         FOD grid (fod/surface; default from the turning values) or table levels (lsq;
         default 41).
     delay : int, float, "auto" or None
-        Output delay in samples; estimated by cross-validation when ``None``/``"auto"``.
+        Output delay in samples; estimated when ``None``/``"auto"``: for the FOD method by the
+        Mayergoyz model's residual on the sweep shifted by each whole-sample delay (a nonzero
+        one must lower it by 25 %, :data:`~preisach.identify.delay.SCORE_MARGIN`), else by
+        cross-validation (:func:`~preisach.identify.delay.estimate_delay`).
     initial_state : str or State
         Initial-state policy (see :mod:`preisach.initial_state`).
     name : str
