@@ -12,7 +12,8 @@ def _smooth_device() -> PreisachModel:
     lv = np.linspace(-10.0, 10.0, 401)
     a, b = np.meshgrid(lv, lv, indexing="ij")
     r, c = 0.5 * (a - b), 0.5 * (a + b)
-    mu = np.where(a > b, np.exp(-0.5 * ((r - 0.6) / 1.4) ** 2 - 0.5 * ((c + 1.0) / 2.2) ** 2), 0.0)
+    mu = np.exp(-0.5 * ((r - 0.6) / 1.4) ** 2 - 0.5 * ((c + 1.0) / 2.2) ** 2)
+    mu = np.where(a > b, mu, 0.0)
     e = np.cumsum(np.cumsum(mu[:, ::-1], axis=1)[:, ::-1], axis=0)
     return PreisachModel.from_everett(
         lambda x, z: (16.0 / e[-1, 0]) * e[np.searchsorted(lv, x), np.searchsorted(lv, z)], lv

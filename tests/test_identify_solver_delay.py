@@ -120,8 +120,9 @@ def _steep_model() -> PreisachModel:
     lv = np.linspace(-10.0, 10.0, 201)
     a, b = np.meshgrid(lv, lv, indexing="ij")
     r, c = 0.5 * (a - b), 0.5 * (a + b)
-    mu = np.where(a > b, np.exp(-0.5 * ((r - 0.6) / 1.4) ** 2 - 0.5 * ((c + 1.0) / 2.2) ** 2), 0.0)
-    e = np.cumsum(np.cumsum(mu[:, ::-1], axis=1)[:, ::-1], axis=0)  # mass of b <= beta <= alpha <= a
+    mu = np.exp(-0.5 * ((r - 0.6) / 1.4) ** 2 - 0.5 * ((c + 1.0) / 2.2) ** 2)
+    mu = np.where(a > b, mu, 0.0)
+    e = np.cumsum(np.cumsum(mu[:, ::-1], axis=1)[:, ::-1], axis=0)  # b <= beta <= alpha <= a
     ev = RegularGridInterpolator((lv, lv), 16.0 * e / e[-1, 0])
     return PreisachModel.from_everett(
         lambda x, z: ev(np.c_[x.ravel(), z.ravel()]).reshape(x.shape), lv

@@ -494,6 +494,17 @@ def _toml_value(v) -> str:
     return str(v)
 
 
+@pytest.mark.parametrize("step", ["kind = []", 'kind = "drive"\ntarget = ["psi_n"]\ny_d = 1.0'])
+def test_trial_checker_names_a_list_where_a_word_belongs(tmp_path, step):
+    # hypothesis found `kind = []` raising TypeError (a list cannot be looked up by name)
+    from preisach.trials import check_trial
+
+    p = tmp_path / "t.toml"
+    p.write_text(HEAD + f"[[steps]]\n{step}\n")
+    with pytest.raises(TrialFileError, match=r"steps\[0\]"):
+        check_trial(p)
+
+
 @FUZZ
 @given(
     section=st.sampled_from(["trial", "device", "output", "input", "safety", "steps"]),

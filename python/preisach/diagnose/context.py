@@ -92,7 +92,7 @@ class Fold:
 
 
 def prior_everett(model: PreisachModel, levels: Array) -> Array:
-    """The given model's Everett table on ``levels`` (V): the refit's prior weights.
+    """Return the given model's Everett table on ``levels`` (V): the refit's prior weights.
 
     On the model's own grid (or a coarser one) its table interpolated as it simulates
     (bilinearly).  On a finer grid the table's nodes are interpolated by a bicubic spline of

@@ -55,7 +55,7 @@ FOD_DELAY_SCORE = "the RMS residual of the Mayergoyz model on its own recordings
 def _fod_delay_score(
     levels: ArrayLike | None, initial_state: InitialState, mirrored: bool
 ) -> Callable[[list[SampledData]], float]:
-    """The error of an output delay for FOD recordings: the Mayergoyz model's own residual.
+    """Return the error of an output delay for FOD recordings: the Mayergoyz model's residual.
 
     The model is read off the FOD nodes of the recordings shifted by the delay and simulated
     on them; the samples between the nodes are not fitted, and a delay that pairs the output

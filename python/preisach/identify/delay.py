@@ -203,7 +203,9 @@ def estimate_delay(
 
     def evaluate(recs_d: Sequence[SampledData], d: int) -> float:
         if score is not None:
-            shifted_d: list[SampledData] = [shift_output(r, d) for r in recs_d] if d else list(recs_d)
+            shifted_d: list[SampledData] = (
+                [shift_output(r, d) for r in recs_d] if d else list(recs_d)
+            )
             return float(score(shifted_d))
         _, _, details, _, _ = identify_lsq_core(
             recs_d,

@@ -472,7 +472,7 @@ def _parse(data: Mapping[str, Any], path: str, errors: _Errors) -> _Draft:
             errors.add(where, "must be a table")
             continue
         kind = st.get("kind")
-        if kind not in STEP_KINDS:
+        if not isinstance(kind, str) or kind not in STEP_KINDS:  # a list is no kind (unhashable)
             errors.add(
                 where,
                 f"kind {kind!r} is unknown{_suggest(str(kind), list(STEP_KINDS))}; "
@@ -515,7 +515,7 @@ def _check_step(
         if key in p and not all(_type_ok(v, _NUM) for v in p[key]):
             errors.add(where, f"{key} must be an array of numbers, got {p[key]!r}")
     if kind == "drive":
-        if "target" in p and p["target"] not in _TARGETS:
+        if "target" in p and not (isinstance(p["target"], str) and p["target"] in _TARGETS):
             errors.add(where, f"target must be one of {sorted(_TARGETS)}, got {p['target']!r}")
         if p["offset"] is None and p["y_d"] is None:
             errors.add(where, "give offset (V) or y_d (V, the desired output)")
