@@ -3,25 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+from _lsq_data import gaussian_model
 from preisach import PreisachModel
 from preisach.diagnose.context import prior_everett
 
 
-def _smooth_device() -> PreisachModel:
-    """A classical device with a Gaussian density (coercive 0.6 +/- 1.4 V, bias -1 +/- 2.2 V)."""
-    lv = np.linspace(-10.0, 10.0, 401)
-    a, b = np.meshgrid(lv, lv, indexing="ij")
-    r, c = 0.5 * (a - b), 0.5 * (a + b)
-    mu = np.exp(-0.5 * ((r - 0.6) / 1.4) ** 2 - 0.5 * ((c + 1.0) / 2.2) ** 2)
-    mu = np.where(a > b, mu, 0.0)
-    e = np.cumsum(np.cumsum(mu[:, ::-1], axis=1)[:, ::-1], axis=0)
-    return PreisachModel.from_everett(
-        lambda x, z: (16.0 / e[-1, 0]) * e[np.searchsorted(lv, x), np.searchsorted(lv, z)], lv
-    )
-
-
 def test_finer_grid_prior_is_the_smooth_interpolant_of_the_models_nodes():
-    truth = _smooth_device()
+    truth = gaussian_model(401)
     coarse_lv = np.linspace(-10.0, 10.0, 22)
     coarse = PreisachModel.from_everett(truth.everett, coarse_lv)
     fine = np.linspace(-10.0, 10.0, 41)

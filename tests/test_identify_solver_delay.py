@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _lsq_data import gaussian_model
 from _lsq_data import grid_model as _grid_model
 from _lsq_data import rich_input as _rich_input
 from preisach import PreisachModel, Recording
@@ -113,22 +114,6 @@ def test_shift_output_integer_and_fractional():
         shift_output(rec, -1)
 
 
-def _steep_model() -> PreisachModel:
-    """A classical device whose loops are steep for a 21-level grid (a Gaussian density)."""
-    from scipy.interpolate import RegularGridInterpolator
-
-    lv = np.linspace(-10.0, 10.0, 201)
-    a, b = np.meshgrid(lv, lv, indexing="ij")
-    r, c = 0.5 * (a - b), 0.5 * (a + b)
-    mu = np.exp(-0.5 * ((r - 0.6) / 1.4) ** 2 - 0.5 * ((c + 1.0) / 2.2) ** 2)
-    mu = np.where(a > b, mu, 0.0)
-    e = np.cumsum(np.cumsum(mu[:, ::-1], axis=1)[:, ::-1], axis=0)  # b <= beta <= alpha <= a
-    ev = RegularGridInterpolator((lv, lv), 16.0 * e / e[-1, 0])
-    return PreisachModel.from_everett(
-        lambda x, z: ev(np.c_[x.ravel(), z.ravel()]).reshape(x.shape), lv
-    )
-
-
 @pytest.mark.parametrize("lag", [0, 3])
 def test_fod_delay_is_scored_by_the_mayergoyz_model_not_a_coarse_grid(lag):
     # A 21-level least-squares grid cross-validated over time blocks blurs steep loops; its
@@ -137,7 +122,7 @@ def test_fod_delay_is_scored_by_the_mayergoyz_model_not_a_coarse_grid(lag):
     # model's own residual, which finds both.
     from preisach.identify import identify
 
-    truth = _steep_model()
+    truth = gaussian_model()
     u = fod_sweep(21, u_min=-10.0, u_max=10.0, frequency=2.0, shape="triangle").u
     y = truth.simulate(u, truth.negative_saturation()).output
     y = y + np.random.default_rng(1).normal(0.0, 2e-3, y.size)
