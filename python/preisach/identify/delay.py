@@ -56,13 +56,16 @@ class DelayEstimate:
     candidates : ndarray
         Delays tried (samples), integers first, then the fractional proposal if any.
     cv_rms : ndarray
-        Cross-validated RMS error (output units) of the coarse model for each candidate.
+        Cross-validated RMS error (output units) of the coarse model for each candidate, or
+        the caller's score when ``scored_by`` names one.
     levels : int
         Levels of the coarse least-squares model used for scoring.
     folds : int
         Cross-validation folds.
     notes : list of str
         Anything worth knowing (the range of delays searched, a fractional proposal rejected).
+    scored_by : str
+        What scored the delays when not the least-squares cross-validation (``score_name``).
 
     """
 
@@ -72,7 +75,6 @@ class DelayEstimate:
     levels: int = ESTIMATE_LEVELS
     folds: int = 5
     notes: list[str] = field(default_factory=list)
-    #: What scored the delays when not the least-squares cross-validation (``score_name``).
     scored_by: str = ""
 
     def describe(self) -> str:
@@ -174,10 +176,10 @@ def estimate_delay(
         Recording names for messages.
     score : callable, optional
         Another error of a candidate delay: called with the recordings shifted by it
-        (:func:`shift_output`), returns an RMS error (output units), lower is better.  The
-        FOD identifiers pass the residual of the Mayergoyz model on its own recordings, which
-        a coarse least-squares grid's resolution error does not blur (see
-        :func:`preisach.identify.identify`).  Whole samples only, and a nonzero delay must
+        (:func:`shift_output`), returns an RMS error (output units), lower is better.
+        :func:`preisach.identify.identify` passes, when it chose the FOD method, the residual
+        of the Mayergoyz model on its own recordings, which a coarse least-squares grid's
+        resolution error does not blur.  Whole samples only, and a nonzero delay must
         lower it by :data:`SCORE_MARGIN` of its value at 0.
     score_name : str
         What ``score`` measures, for the report.
