@@ -89,9 +89,13 @@ def test_the_delay_is_estimated_and_applied_by_every_method():
     est = estimate_delay([late])
     assert est.delay == pytest.approx(3.0, abs=0.5)
     assert list(est.candidates[:4]) == [0.0, 1.0, 2.0, 3.0]
-    rep = identify_fod(late, delay="auto")  # (identify() and the CLI estimate by default)
-    assert rep.delay == est.delay and rep.delay_estimate is not None
-    assert "cross-validation" in rep.summary()
+    # FOD identifiers (and identify() and the CLI, which estimate by default) score whole
+    # samples by the Mayergoyz model's own residual; least squares cross-validates
+    rep = identify_fod(late, delay="auto")
+    assert rep.delay == 3.0 and rep.delay_estimate is not None
+    assert "Mayergoyz model on its own recordings" in rep.summary()
+    lsq = identify_lsq(late, 11, delay="auto", lambdas=[1e-3])
+    assert lsq.delay == est.delay and "cross-validation" in lsq.summary()
     # --delay is honoured by fod: 0 and 3 give different models, 3 the better one
     r0 = identify_fod(late, delay=0)
     r3 = identify_fod(late, delay=3)

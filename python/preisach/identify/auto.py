@@ -19,7 +19,6 @@ FOD method by the Mayergoyz model's own residual - and applied to whichever meth
 from __future__ import annotations
 
 import time
-from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -30,10 +29,12 @@ from ..model import PreisachModel
 from ..recording import Recording, RecordingsInput, SampledData
 from .fod_finder import FODData, find_fod_curves
 from .identifiers import (
+    FOD_DELAY_SCORE,
     MAX_FOD_LEVELS,
     Delay,
     _delay_recordings,
     _recordings,
+    fod_delay_score,
     identify_fod,
     identify_lsq,
     identify_surface,
@@ -48,32 +49,8 @@ FOD_COVERAGE = 0.9
 METHODS = ("auto", "fod", "surface", "lsq")
 
 
-#: How :func:`identify` scores a candidate output delay when it chose the FOD identifier.
-FOD_DELAY_SCORE = "the RMS residual of the Mayergoyz model on its own recordings"
-
-
-def _fod_delay_score(
-    levels: ArrayLike | None, initial_state: InitialState, mirrored: bool
-) -> Callable[[list[SampledData]], float]:
-    """Return the error of an output delay for FOD recordings: the Mayergoyz model's residual.
-
-    The model is read off the FOD nodes of the recordings shifted by the delay and simulated
-    on them; the samples between the nodes are not fitted, and a delay that pairs the output
-    with the wrong input leaves them off the model's branches.  The default least-squares
-    score (a 21-level grid cross-validated over time blocks) is blurred by that grid's own
-    resolution error on steep loops: on a delay-free blind test device (seed 11, case 008,
-    Gaussian density) its error fell from 0.40 V at delay 0 to 0.21 V at 6 samples, and the
-    6-sample model left 181 mV on its own sweep against 32 mV at delay 0.
-    """
-
-    def score(recs: list[SampledData]) -> float:
-        data = [mirror_recording(r) for r in recs] if mirrored else list(recs)
-        rep = identify_fod(data, levels, initial_state=initial_state, delay=0)
-        n = np.array([r.n for r in rep.residuals], float)
-        rms = np.array([r.rms_error for r in rep.residuals], float)
-        return float(np.sqrt(np.sum(n * rms**2) / max(float(np.sum(n)), 1.0)))
-
-    return score
+def _mirrored(recs: list[SampledData]) -> list[SampledData]:
+    return [mirror_recording(r) for r in recs]
 
 
 def mirror_recording(rec: SampledData) -> Recording:
@@ -230,7 +207,8 @@ def identify(
     score, score_name = None, ""
     if chosen == "fod":  # the method is chosen on the recordings as given (a few samples of
         # delay do not change which curves they hold); the delay is then scored by the model
-        score, score_name = _fod_delay_score(levels, initial_state, mirrored), FOD_DELAY_SCORE
+        mirror = _mirrored if mirrored else None
+        score, score_name = fod_delay_score(levels, initial_state, None, mirror), FOD_DELAY_SCORE
     recs, d, estimate, _ = _delay_recordings(recs, delay, initial_state, False, score, score_name)
     data = [mirror_recording(r) for r in recs] if mirrored else recs
     if chosen == "fod":

@@ -252,7 +252,8 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         default="auto",
         metavar="D",
         help="output delay in samples, y[k+D] answers u[k], applied by every method; "
-        "fractional allowed; auto (default): estimated by cross-validation and reported",
+        "fractional allowed; auto (default): estimated and reported (whole samples scored by "
+        "the Mayergoyz model's own residual for FOD/FORC data, cross-validated otherwise)",
     )
     p.add_argument(
         "--initial-state",

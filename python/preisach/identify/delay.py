@@ -9,8 +9,9 @@ than the best, or ``max_delay``): for each, a coarse least-squares model (21 lev
 weight chosen by 5-fold cross-validation over time blocks) is fitted and its cross-validated RMS
 error noted.  The delay with the lowest error wins; a parabola through it and its neighbours then
 proposes a fractional delay, which is kept when its own cross-validated error is lower still.
-A caller may score the delays its own way (``score``): :func:`preisach.identify.identify`
-scores an FOD sweep by the Mayergoyz model's residual on the shifted sweep itself, whole
+A caller may score the delays its own way (``score``): the FOD identifiers (and so
+:func:`preisach.identify.identify` when it chose them) score an FOD sweep by the Mayergoyz
+model's residual on the shifted sweep itself, whole
 samples only, and keeps a nonzero delay only when it lowers that residual by
 :data:`SCORE_MARGIN` - the coarse least-squares grid's own resolution error moves with the
 delay on steep loops (6 samples found on a delay-free blind test device).
@@ -177,10 +178,10 @@ def estimate_delay(
     score : callable, optional
         Another error of a candidate delay: called with the recordings shifted by it
         (:func:`shift_output`), returns an RMS error (output units), lower is better.
-        :func:`preisach.identify.identify` passes, when it chose the FOD method, the residual
-        of the Mayergoyz model on its own recordings, which a coarse least-squares grid's
-        resolution error does not blur.  Whole samples only, and a nonzero delay must
-        lower it by :data:`SCORE_MARGIN` of its value at 0.
+        The FOD identifiers pass the residual of the Mayergoyz model on its own recordings
+        (:func:`preisach.identify.identifiers.fod_delay_score`), which a coarse
+        least-squares grid's resolution error does not blur.  Whole samples only, and a
+        nonzero delay must lower it by :data:`SCORE_MARGIN` of its value at 0.
     score_name : str
         What ``score`` measures, for the report.
 
