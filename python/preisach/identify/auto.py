@@ -19,6 +19,7 @@ FOD method by the Mayergoyz model's own residual - and applied to whichever meth
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -49,7 +50,8 @@ FOD_COVERAGE = 0.9
 METHODS = ("auto", "fod", "surface", "lsq")
 
 
-def _mirrored(recs: list[SampledData]) -> list[SampledData]:
+def _mirrored(recs: Sequence[SampledData]) -> list[Recording]:
+    """Return every recording mirrored (:func:`mirror_recording`)."""
     return [mirror_recording(r) for r in recs]
 
 
@@ -172,7 +174,7 @@ def identify(
         if lv_arg is not None and np.ndim(lv_arg) == 0 and int(np.asarray(lv_arg)) > MAX_FOD_LEVELS:
             lv_arg = None  # too fine for an FOD grid: found on the default grid
         fod, why = _find(recs, lv_arg, False)
-        forc, why_r = _find([mirror_recording(r) for r in recs], lv_arg, True)
+        forc, why_r = _find(_mirrored(recs), lv_arg, True)
         cov = _coverage(fod) if fod is not None else (0, 1)
         cov_r = _coverage(forc) if forc is not None else (0, 1)
         frac, frac_r = cov[0] / cov[1], cov_r[0] / cov_r[1]
@@ -210,7 +212,7 @@ def identify(
         mirror = _mirrored if mirrored else None
         score, score_name = fod_delay_score(levels, initial_state, None, mirror), FOD_DELAY_SCORE
     recs, d, estimate, _ = _delay_recordings(recs, delay, initial_state, False, score, score_name)
-    data = [mirror_recording(r) for r in recs] if mirrored else recs
+    data = _mirrored(recs) if mirrored else recs
     if chosen == "fod":
         rep = identify_fod(
             data, levels, project=project, name=name, initial_state=initial_state, delay=0

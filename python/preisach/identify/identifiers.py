@@ -293,7 +293,7 @@ def fod_delay_score(
     levels: ArrayLike | int | None,
     initial_state: InitialState,
     finder_options: dict[str, FinderOption] | None = None,
-    prepare: Callable[[list[SampledData]], list[SampledData]] | None = None,
+    prepare: Callable[[list[SampledData]], Sequence[SampledData]] | None = None,
 ) -> Callable[[list[SampledData]], float]:
     """Return the error of an output delay for FOD recordings: the Mayergoyz model's residual.
 
