@@ -2,9 +2,10 @@
 
 Reads the truth files of a blind2 set (``scripts/blind2/generator.py OUT ...``; the base
 density of every case) and prints, per case, the RMS error (mV of output) of the Everett
-function interpolated from its values on an n-level grid, bilinearly (as the package's
-tables simulate) and by a bicubic spline of the antisymmetric extension (as the diagnosis's
-finer-grid prior, ``preisach.diagnose.context.prior_everett``), at 4000 random
+function interpolated from its values on an n-level grid, bilinearly (a bilinear table), by the
+core's cubic interpolation (a cubic table, ``EverettTable(..., interpolation="cubic")``) and by
+a bicubic spline of the antisymmetric extension (the diagnosis's finer-grid prior of a
+bilinear model, ``preisach.diagnose.context.prior_everett``), at 4000 random
 ``(alpha, beta)`` with ``alpha - beta`` up to 8 V.  A study of the base's resolution floor
 (docs/diagnosis.md section 5e); it reads the generator's truth, so run it on seen sets only.
 
@@ -19,6 +20,7 @@ import os
 import sys
 
 import numpy as np
+from preisach import _core
 from scipy.interpolate import RectBivariateSpline, RegularGridInterpolator
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "blind2"))
@@ -29,7 +31,9 @@ def main(out: str, grids: tuple[int, ...] = (22, 41, 61, 81)) -> None:
     rng = np.random.default_rng(0)
     a = rng.uniform(-10.0, 10.0, 4000)
     b = np.maximum(a - rng.uniform(0.0, 8.0, a.size), -10.0)
-    print(f"{'case':9s} {'density':16s} " + " ".join(f"{n:>3d}: bilinear bicubic" for n in grids))
+    print(
+        f"{'case':9s} {'density':16s} " + " ".join(f"{n:>3d}: bilinear cubic spline" for n in grids)
+    )
     for path in sorted(glob.glob(os.path.join(out, "truth", "case_*.json"))):
         base = json.load(open(path))["base"]
         ev = generator.Everett(generator.make_density(base["family"], base["dens"]))
@@ -44,9 +48,11 @@ def main(out: str, grids: tuple[int, ...] = (22, 41, 61, 81)) -> None:
             nodes = full(np.stack(np.meshgrid(lv, lv, indexing="ij"), -1).reshape(-1, 2))
             nodes = nodes.reshape(n, n)
             lin = RegularGridInterpolator((lv, lv), nodes)(np.c_[a, b])
+            low = np.tril(nodes, -1)
+            core = _core.EverettTable(lv, low, 0.0, "cubic")(a, b)
             cub = RectBivariateSpline(lv, lv, nodes, kx=3, ky=3).ev(a, b)
-            rms = [1e3 * volts * float(np.sqrt(np.mean((x - true) ** 2))) for x in (lin, cub)]
-            cols.append(f"{rms[0]:13.1f} {rms[1]:7.1f}")
+            rms = [1e3 * volts * float(np.sqrt(np.mean((x - true) ** 2))) for x in (lin, core, cub)]
+            cols.append(f"{rms[0]:13.1f} {rms[1]:5.1f} {rms[2]:6.1f}")
         name = os.path.basename(path)[:-5]
         print(f"{name:9s} {base['family']:16s} " + " ".join(cols))
 

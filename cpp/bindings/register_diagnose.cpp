@@ -94,7 +94,8 @@ void register_diagnose(py::module_& m) {
            const std::vector<preisach::State>& states, const InArray& gains, const InArray& zeros, double u_min,
            double u_max, double ridge, const InArray& theta0,
            const std::vector<std::vector<std::tuple<std::vector<double>, std::vector<double>, double>>>& filters,
-           const preisach::EverettTable* reference, unsigned threads) {
+           const preisach::EverettTable* reference, unsigned threads, const std::string& interpolation) {
+            const auto kind = preisach::parse_interpolation(interpolation);
             const std::size_t R = u.size();
             if (p.size() != R || y.size() != R || fold.size() != R)
                 throw std::invalid_argument("u, p, y and fold: need one array per recording (got " +
@@ -132,7 +133,7 @@ void register_diagnose(py::module_& m) {
             {
                 py::gil_scoped_release release;
                 sse = preisach::feedback_gain_scan(levels, recs, states, pg, pz, k, u_min, u_max, ridge, pt, reference,
-                                                   threads);
+                                                   threads, kind);
             }
             py::array_t<double> out(static_cast<py::ssize_t>(k));
             std::copy(sse.begin(), sse.end(), out.mutable_data());
@@ -141,7 +142,7 @@ void register_diagnose(py::module_& m) {
         py::arg("levels"), py::arg("u"), py::arg("p"), py::arg("y"), py::arg("fold"), py::arg("states"),
         py::arg("gains"), py::arg("zeros"), py::arg("u_min"), py::arg("u_max"), py::arg("ridge"), py::arg("theta0"),
         py::arg("filters") = std::vector<std::vector<std::tuple<std::vector<double>, std::vector<double>, double>>>{},
-        py::arg("reference").none(true) = nullptr, py::arg("threads") = 0,
+        py::arg("reference").none(true) = nullptr, py::arg("threads") = 0, py::arg("interpolation") = "bilinear",
         "Training SSE (V^2) of a profiled Preisach fit whose relays see clamp(u + a (p - y0)) (volts), for every "
         "(gain a, zero y0): one list entry per recording (u, p the feedback signal one sample late, y, fold: 0 a "
         "row, < 0 state only), states[k * len(u) + i] the initial state of recording i at point k; ridge toward "

@@ -82,18 +82,21 @@ void register_identify(py::module_& m) {
 
     m.def(
         "regressor_rows",
-        [](const Eigen::VectorXd& levels, const InArray& u, const State& state, const std::string& out_of_range) {
+        [](const Eigen::VectorXd& levels, const InArray& u, const State& state, const std::string& out_of_range,
+           const std::string& interpolation) {
             const auto policy = parse_policy(out_of_range);
+            const auto kind = preisach::parse_interpolation(interpolation);
             std::size_t n = 0;
             const double* pu = as_vector(u, "u", n);
             preisach::RegressorRows r;
             {
                 py::gil_scoped_release release;
-                r = preisach::regressor_rows(levels, state, pu, n, policy);
+                r = preisach::regressor_rows(levels, state, pu, n, policy, kind);
             }
             return py::make_tuple(to_array(r.indptr), to_array(r.indices), to_array(r.data), r.final_state);
         },
         py::arg("levels"), py::arg("u"), py::arg("state"), py::arg("out_of_range") = "clamp",
+        py::arg("interpolation") = "bilinear",
         "Per-sample linear map from theta = (Everett nodes E(i, j), j < i, row-major; y_min) to the output, as "
         "CSR arrays (indptr, indices, data) plus the final state.");
 
@@ -101,8 +104,9 @@ void register_identify(py::module_& m) {
         "normal_equations",
         [](const Eigen::VectorXd& levels, const InArray& u, const InArray& y, const State& state,
            const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& fold, int n_folds,
-           const std::string& out_of_range) {
+           const std::string& out_of_range, const std::string& interpolation) {
             const auto policy = parse_policy(out_of_range);
+            const auto kind = preisach::parse_interpolation(interpolation);
             std::size_t nu = 0, ny = 0;
             const double* pu = as_vector(u, "u", nu);
             const double* py_ = as_vector(y, "y", ny);
@@ -122,12 +126,12 @@ void register_identify(py::module_& m) {
             {
                 py::gil_scoped_release release;
                 preisach::accumulate_normal_equations_into(levels, state, pu, py_, pf, nu, n_folds, policy, out,
-                                                           &final_state);
+                                                           &final_state, kind);
             }
             return py::make_tuple(gram, rhs, yy, ysum, count, final_state);
         },
         py::arg("levels"), py::arg("u"), py::arg("y"), py::arg("state"), py::arg("fold"), py::arg("n_folds"),
-        py::arg("out_of_range") = "clamp",
+        py::arg("out_of_range") = "clamp", py::arg("interpolation") = "bilinear",
         "Normal equations of y ~ r_t . theta per fold (fold[t] < 0 skips sample t but still advances the state), "
         "accumulated in place: returns (gram (K, p, p), rhs (K, p), yy (K), ysum (K), count (K), final_state); "
         "the GIL is released.");

@@ -7,7 +7,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 class EverettTable:
-    def __init__(self, levels: ArrayLike, values: ArrayLike, y_min: float) -> None: ...
+    def __init__(
+        self, levels: ArrayLike, values: ArrayLike, y_min: float, interpolation: str = "bilinear"
+    ) -> None: ...
     @staticmethod
     def from_fod(levels: ArrayLike, y_grid: ArrayLike) -> EverettTable: ...
     @staticmethod
@@ -26,6 +28,10 @@ class EverettTable:
     def u_max(self) -> float: ...
     @property
     def uniform(self) -> bool: ...
+    @property
+    def interpolation(self) -> str: ...
+    def with_interpolation(self, interpolation: str) -> EverettTable: ...
+    def resample(self, levels: ArrayLike, interpolation: str = "bilinear") -> EverettTable: ...
     @overload
     def __call__(self, alpha: float, beta: float) -> float: ...
     @overload
@@ -219,7 +225,11 @@ def project_nonnegative(
     table: EverettTable, keep_y_max: bool = True, tol: float = 1e-12, max_sweeps: int = 200000
 ) -> ProjectionResult: ...
 def regressor_rows(
-    levels: ArrayLike, u: ArrayLike, state: State, out_of_range: str = "clamp"
+    levels: ArrayLike,
+    u: ArrayLike,
+    state: State,
+    out_of_range: str = "clamp",
+    interpolation: str = "bilinear",
 ) -> tuple[NDArray[np.int64], NDArray[np.uint32], NDArray[np.float64], State]: ...
 def normal_equations(
     levels: ArrayLike,
@@ -229,6 +239,7 @@ def normal_equations(
     fold: ArrayLike,
     n_folds: int,
     out_of_range: str = "clamp",
+    interpolation: str = "bilinear",
 ) -> tuple[
     NDArray[np.float64],
     NDArray[np.float64],
@@ -279,6 +290,7 @@ def feedback_gain_scan(
     filters: Sequence[Sequence[tuple[ArrayLike, ArrayLike, float]]] = (),
     reference: EverettTable | None = None,
     threads: int = 0,
+    interpolation: str = "bilinear",
 ) -> NDArray[np.float64]: ...
 
 # --- blocks/ (register_blocks.cpp) ---

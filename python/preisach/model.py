@@ -15,6 +15,7 @@ Conventions used throughout :mod:`preisach`:
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import zipfile
@@ -53,9 +54,12 @@ PathLike = Union[str, "os.PathLike[str]"]
 BUILTIN_MODELS: dict[str, int] = {"ss15-1hz": 1, "ss15-2hz": 2, "ss15-4hz": 4}
 
 _FORMAT = "preisach-model"
-#: Version 2 adds the identification recordings (``ident{k}_t/u/y`` and ``ident_meta``); a
-#: model without them is still written as version 1, and both versions load.
-_FORMAT_VERSION = 2
+#: Version 2 adds the identification recordings (``ident{k}_t/u/y`` and ``ident_meta``);
+#: version 3 the interpolation between the nodes (``interpolation``, written only for a cubic
+#: table, so an older package refuses a file it would simulate differently).  A model is
+#: written at the lowest version that holds it, and every version loads.
+_FORMAT_VERSION = 3
+INTERPOLATIONS = ("bilinear", "cubic")
 _POLICIES = ("clamp", "raise")
 _FIELDS = ("format", "version", "levels", "everett", "y_min", "info")
 _T = TypeVar("_T")
@@ -459,6 +463,7 @@ class PreisachModel(_ModelBase):
         *,
         y_min: float | None = None,
         u_range: tuple[float, float] | None = None,
+        interpolation: str = "bilinear",
         **kwargs: Any,
     ) -> PreisachModel:
         """Tabulate a Python Everett function on a grid.
@@ -475,6 +480,8 @@ class PreisachModel(_ModelBase):
             model whose saturated outputs are ``-/+ E(u_max, u_min)``.
         u_range : (float, float), optional
             ``(u_min, u_max)`` (V) when ``levels`` is a count.
+        interpolation : {"bilinear", "cubic"}
+            How the table is interpolated between its nodes (see :attr:`interpolation`).
         **kwargs
             Passed to the constructor.
 
@@ -493,7 +500,7 @@ class PreisachModel(_ModelBase):
             raise ValueError(f"func: E({lv[i]}, {lv[j]}) is not finite")
         ym = -float(values[-1, 0]) if y_min is None else float(y_min)
         kwargs.setdefault("metadata", {"source": "everett_function"})
-        return cls(_core.EverettTable(lv, values, ym), **kwargs)
+        return cls(_core.EverettTable(lv, values, ym, interpolation), **kwargs)
 
     @classmethod
     def from_weights(
@@ -587,6 +594,34 @@ class PreisachModel(_ModelBase):
     def levels(self) -> NDArray[np.float64]:
         """Grid levels (V)."""
         return np.asarray(self._table.levels)
+
+    @property
+    def interpolation(self) -> str:
+        """How the Everett table is interpolated between its nodes: ``"bilinear"`` or ``"cubic"``.
+
+        Bilinear (the default) in each grid cell; cubic is the C1 tensor-product cubic Hermite
+        interpolant whose node slopes are those of the parabola through each node and its
+        neighbours (Catmull-Rom on a uniform grid), through the antisymmetric extension
+        ``E(a, b) = -E(b, a)``.  Both pass through the nodes and are linear in them (so
+        identification and diagnosis refit either); a smooth density tabulated on a coarse
+        grid is followed about ten times more closely by the cubic one (21-level FOD grid:
+        13-36 mV against 0.2-5 mV RMS on blind densities).  :func:`preisach.identify` chooses
+        it from the identification sweep.  The inverse of a cubic model is computed on a
+        bilinear resampling four times finer (:func:`preisach.compensate.invert`).
+        """
+        return str(self._table.interpolation)
+
+    def with_interpolation(self, interpolation: str) -> PreisachModel:
+        """Return a copy with the same nodes interpolated by ``"bilinear"`` or ``"cubic"``."""
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(
+                f"interpolation: expected 'bilinear' or 'cubic', got {interpolation!r}"
+            )
+        new = copy.copy(self)
+        new._table = self._table.with_interpolation(interpolation)
+        new.metadata = dict(self.metadata)
+        new.identification = list(self.identification)
+        return new
 
     @property
     def everett_values(self) -> NDArray[np.float64]:
@@ -839,14 +874,17 @@ class PreisachModel(_ModelBase):
 
         """
         info = _model_info(path, self.name, self.metadata, self.out_of_range)
+        cubic = self.interpolation == "cubic"
         arrays: dict[str, Any] = {
             "format": np.array(_FORMAT),
-            "version": np.array(_FORMAT_VERSION if self.identification else 1),
+            "version": np.array(3 if cubic else 2 if self.identification else 1),
             "levels": self.levels,
             "everett": self.everett_values,
             "y_min": np.array(self.y_min),
             "info": np.array(info),
         }
+        if cubic:
+            arrays["interpolation"] = np.array("cubic")
         if self.identification:
             metas = []
             for k, rec in enumerate(self.identification):
@@ -869,11 +907,11 @@ class PreisachModel(_ModelBase):
 
         """
         p = os.fspath(path)
-        levels, everett, y_min, meta, ident = _read_archive(
+        levels, everett, y_min, meta, interp, ident = _read_archive(
             path, lambda p, data: (*cls._read_fields(p, data), cls._read_identification(p, data))
         )
         try:
-            table = _core.EverettTable(levels, everett, y_min)
+            table = _core.EverettTable(levels, everett, y_min, interp)
             model = cls(
                 table,
                 name=str(meta.get("name", "")),
@@ -904,12 +942,13 @@ class PreisachModel(_ModelBase):
     @staticmethod
     def _read_fields(
         p: str, data: Any
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, dict[str, Any]]:
-        """Levels, Everett values, y_min and info of an open model archive ``data`` (file p)."""
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float, dict[str, Any], str]:
+        """Levels, Everett values, y_min, info and interpolation of an open model archive."""
 
-        def read() -> tuple[NDArray[np.float64], NDArray[np.float64], float, dict[str, Any]]:
+        def read() -> tuple[NDArray[np.float64], NDArray[np.float64], float, dict[str, Any], str]:
             _, meta = _read_envelope(p, data, _FORMAT, _FIELDS, _FORMAT_VERSION, "preisach model")
-            return data["levels"], data["everett"], float(data["y_min"]), meta
+            interp = str(data["interpolation"]) if "interpolation" in data.files else "bilinear"
+            return data["levels"], data["everett"], float(data["y_min"]), meta, interp
 
         return _damaged(p, read)
 
@@ -932,6 +971,7 @@ class PreisachModel(_ModelBase):
             np.array_equal(self.levels, other.levels)
             and np.array_equal(self.everett_values, other.everett_values)
             and self.y_min == other.y_min
+            and self.interpolation == other.interpolation
         )
 
     def _repr_html_(self) -> str:
@@ -944,5 +984,6 @@ class PreisachModel(_ModelBase):
         nm = f"{self.name!r}, " if self.name else ""
         return (
             f"PreisachModel({nm}{len(self.levels)} levels on [{self.u_min:g}, {self.u_max:g}] V, "
-            f"y in [{self.y_min:.4g}, {self.y_max:.4g}] V)"
+            f"y in [{self.y_min:.4g}, {self.y_max:.4g}] V"
+            + (", cubic)" if self.interpolation == "cubic" else ")")
         )

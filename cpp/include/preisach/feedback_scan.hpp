@@ -135,7 +135,8 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
                                               const std::vector<State>& states, const double* gains,
                                               const double* zeros, std::size_t n_points, double u_min,
                                               double u_max, double ridge, const double* theta0,
-                                              const EverettTable* reference = nullptr, unsigned threads = 0) {
+                                              const EverettTable* reference = nullptr, unsigned threads = 0,
+                                              Interpolation interpolation = Interpolation::bilinear) {
     const std::size_t R = recs.size();
     bool filtered = false;
     for (const auto& r : recs) {
@@ -173,7 +174,7 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
         std::vector<std::size_t> ptr{0};
         for (std::size_t i = 0; i < R; ++i) {
             const ScanRecording& r = recs[i];
-            EverettRegressor reg(levels, states[k * R + i]);
+            EverettRegressor reg(levels, states[k * R + i], interpolation);
             if (p == 0) {
                 p = reg.n_params();
                 G = RowMatrixXd::Zero(Eigen::Index(p), Eigen::Index(p));
@@ -221,7 +222,7 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
             for (std::size_t ii = 1; ii < nl; ++ii)
                 for (std::size_t jj = 0; jj < ii; ++jj)
                     v(Eigen::Index(ii), Eigen::Index(jj)) = theta[Eigen::Index(EverettRegressor::node_index(ii, jj))];
-            const EverettTable table(levels, v, theta[Eigen::Index(p - 1)]);
+            const EverettTable table(levels, v, theta[Eigen::Index(p - 1)], interpolation);
             double s = 0.0;
             for (std::size_t i = 0; i < R; ++i) {
                 const ScanRecording& r = recs[i];

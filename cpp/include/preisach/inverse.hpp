@@ -57,7 +57,9 @@ namespace preisach {
 
 class Inverter {
 public:
-    Inverter(const EverettTable& table, const State& state) : sim_(table, state), t_(&table) {
+    // The closed-form roots need a bilinear table: a cubic one is inverted by way of
+    // resample() on a finer grid (the Python layer does so).
+    Inverter(const EverettTable& table, const State& state) : sim_(bilinear_only(table), state), t_(&table) {
         sim_.prepare();
         const std::size_t n = table.size();
         monotone_ = true;
@@ -485,6 +487,13 @@ private:
     }
 
     Simulator sim_;
+    static const EverettTable& bilinear_only(const EverettTable& t) {
+        if (t.cubic())
+            throw std::invalid_argument("table: the inverse needs a bilinear table; resample the cubic one on a "
+                                        "finer grid (EverettTable.resample)");
+        return t;
+    }
+
     const EverettTable* t_;
     bool monotone_ = true;
     std::size_t unreachable_ = 0;

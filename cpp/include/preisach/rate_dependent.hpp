@@ -141,6 +141,11 @@ public:
             throw std::invalid_argument("tau: the rate filter time constant must be >= 0 and finite (s), got " +
                                         std::to_string(tau));
         const auto& lv = tables_[0].levels();
+        for (std::size_t k = 0; k < K; ++k)
+            if (tables_[k].cubic())
+                throw std::invalid_argument("tables[" + std::to_string(k) +
+                                            "]: the rate-dependent model interpolates its tables bilinearly; "
+                                            "give bilinear tables (EverettTable.with_interpolation)");
         for (std::size_t k = 1; k < K; ++k)
             if (tables_[k].levels() != lv)
                 throw std::invalid_argument("tables[" + std::to_string(k) +

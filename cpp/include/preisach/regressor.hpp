@@ -4,7 +4,7 @@
 //     y = y_min + 2 * sum_k C_k,
 // and every piece contribution C_k is a linear combination of Everett table values: a constant
 // piece M on [b0, b1] gives E(M, b0) - E(M, b1), each E(a, b) being the bilinear (on the
-// diagonal: linear) interpolation of 4 nodes; an antidiagonal piece gives the integral of
+// diagonal: linear) interpolation of 4 nodes (cubic grids: 16); an antidiagonal piece gives the integral of
 // -dE/dbeta along it, which is linear in the nodes too.  So for every sample
 //     y_t = r_t . theta,   theta = (E(1, 0), E(2, 0), E(2, 1), ..., E(n-1, n-2), y_min),
 // with the Everett nodes E(i, j), j < i, in row-major order of the lower triangle (node index
@@ -35,8 +35,9 @@ namespace preisach {
 
 class EverettRegressor {
 public:
-    EverettRegressor(const VectorRef& levels, const State& state)
-        : grid_(levels, RowMatrixXd::Zero(levels.size(), levels.size()), 0.0) {
+    EverettRegressor(const VectorRef& levels, const State& state,
+                     Interpolation interpolation = Interpolation::bilinear)
+        : grid_(levels, RowMatrixXd::Zero(levels.size(), levels.size()), 0.0, interpolation) {
         const std::size_t n = grid_.size();
         n_nodes_ = n * (n - 1) / 2;
         acc_.assign(n_nodes_ + 1, 0.0);
@@ -142,6 +143,10 @@ private:
     void add_E(double alpha, double beta, double c) const {
         if (alpha <= beta) return;
         const GridPos a = grid_.locate(alpha), b = grid_.locate(beta);
+        if (grid_.cubic()) {
+            add_cubic(a, b, c, false);
+            return;
+        }
         add_entry(a.i, b.i, c * (1.0 - a.f) * (1.0 - b.f));
         add_entry(a.i + 1, b.i, c * a.f * (1.0 - b.f));
         add_entry(a.i, b.i + 1, c * (1.0 - a.f) * b.f);
@@ -151,6 +156,10 @@ private:
     void add_d_beta(double alpha, double beta, double c) const {
         const GridPos b = grid_.locate(beta, true);
         GridPos a = grid_.locate(alpha, true);
+        if (grid_.cubic()) {
+            add_cubic(a, b, c, true);
+            return;
+        }
         if (a.i < b.i) a = {b.i, a.f};
         const double w = inv_width_[b.i] * c;
         if (a.i == b.i) {
@@ -161,6 +170,13 @@ private:
         add_entry(a.i, b.i, -w * (1.0 - a.f));
         add_entry(a.i + 1, b.i + 1, w * a.f);
         add_entry(a.i + 1, b.i, -w * a.f);
+    }
+    // c * E(a, b) of a cubic grid (d_beta: c * dE/dbeta), over the 4 x 4 stencil.
+    void add_cubic(GridPos a, GridPos b, double c, bool d_beta) const {
+        double wa[4], wb[4];
+        const std::size_t sa = grid_.stencil(a, wa, false), sb = grid_.stencil(b, wb, d_beta);
+        for (std::size_t k = 0; k < 4; ++k)
+            for (std::size_t l = 0; l < 4; ++l) add_entry(sa + k, sb + l, c * wa[k] * wb[l]);
     }
     // c * integral_b0^b1 -dE/dbeta(cc - beta, beta) dbeta (EverettTable::antidiagonal_integral).
     void add_antidiagonal(double cc, double b0, double b1, double c) const {
@@ -180,7 +196,15 @@ private:
             const double lo = cuts_[k], hi = cuts_[k + 1];
             if (!(hi > lo)) continue;
             const double m = 0.5 * (lo + hi);
-            add_d_beta(cc - m, m, -c * (hi - lo));
+            if (grid_.cubic()) {
+                const double half = 0.5 * (hi - lo);
+                for (int g = 0; g < 3; ++g) {
+                    const double x = m + double(g - 1) * kGauss3X * half;
+                    add_d_beta(cc - x, x, -c * kGauss3W[g] * half);
+                }
+            } else {
+                add_d_beta(cc - m, m, -c * (hi - lo));
+            }
         }
     }
 
@@ -237,8 +261,8 @@ struct RegressorRows {
 };
 
 inline RegressorRows regressor_rows(const VectorRef& levels, const State& state, const double* u, std::size_t n,
-                                    InputPolicy policy) {
-    EverettRegressor reg(levels, state);
+                                    InputPolicy policy, Interpolation interpolation = Interpolation::bilinear) {
+    EverettRegressor reg(levels, state, interpolation);
     RegressorRows r;
     r.indptr.reserve(n + 1);
     r.indptr.push_back(0);
@@ -277,9 +301,10 @@ struct NormalEquationsOut {
 inline void accumulate_normal_equations_into(const VectorRef& levels, const State& state, const double* u,
                                              const double* y, const std::int32_t* fold, std::size_t n,
                                              int n_folds, InputPolicy policy, NormalEquationsOut out,
-                                             State* final_state = nullptr) {
+                                             State* final_state = nullptr,
+                                             Interpolation interpolation = Interpolation::bilinear) {
     if (n_folds < 1) throw std::invalid_argument("n_folds: must be >= 1, got " + std::to_string(n_folds));
-    EverettRegressor reg(levels, state);
+    EverettRegressor reg(levels, state, interpolation);
     const std::size_t p = reg.n_params(), K = std::size_t(n_folds);
     std::fill(out.gram, out.gram + K * p * p, 0.0);
     std::fill(out.rhs, out.rhs + K * p, 0.0);
@@ -323,7 +348,8 @@ inline std::vector<NormalEquations> accumulate_normal_equations(const VectorRef&
                                                                 const double* u, const double* y,
                                                                 const std::int32_t* fold, std::size_t n,
                                                                 int n_folds, InputPolicy policy,
-                                                                State* final_state = nullptr) {
+                                                                State* final_state = nullptr,
+                                                                Interpolation interpolation = Interpolation::bilinear) {
     if (n_folds < 1) throw std::invalid_argument("n_folds: must be >= 1, got " + std::to_string(n_folds));
     const std::size_t nl = std::size_t(levels.size());
     const std::size_t p = nl >= 2 ? nl * (nl - 1) / 2 + 1 : 1;
@@ -332,7 +358,7 @@ inline std::vector<NormalEquations> accumulate_normal_equations(const VectorRef&
     std::vector<std::int64_t> count(K);
     accumulate_normal_equations_into(levels, state, u, y, fold, n, n_folds, policy,
                                      {gram.data(), rhs.data(), yy.data(), ysum.data(), count.data()},
-                                     final_state);
+                                     final_state, interpolation);
     std::vector<NormalEquations> ne(K);
     for (std::size_t f = 0; f < K; ++f) {
         ne[f].gram = Eigen::Map<const RowMatrixXd>(gram.data() + f * p * p, Eigen::Index(p), Eigen::Index(p));

@@ -26,7 +26,8 @@ __all__ = ["AugmentedModel", "load_model"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 _FORMAT = "preisach-augmented-model"
-_FORMAT_VERSION = 1
+#: version 2: the base's interpolation (``interpolation``, written for a cubic base only)
+_FORMAT_VERSION = 2
 
 
 class AugmentedModel:
@@ -209,12 +210,14 @@ class AugmentedModel:
         }
         arrays: dict[str, Any] = {
             "format": np.array(_FORMAT),
-            "version": np.array(_FORMAT_VERSION),
+            "version": np.array(2 if self.base.interpolation == "cubic" else 1),
             "levels": self.base.levels,
             "everett": self.base.everett_values,
             "y_min": np.array(self.base.y_min),
             "info": np.array(json.dumps(info)),
         }
+        if self.base.interpolation == "cubic":
+            arrays["interpolation"] = np.array("cubic")
         atomic_write(path, lambda f: np.savez(f, **arrays), binary=True, what="model")
 
     @classmethod
@@ -249,7 +252,10 @@ class AugmentedModel:
                     f"{os.fspath(path)}: augmented model format version {version} is "
                     f"newer than this package supports ({_FORMAT_VERSION}); upgrade preisach"
                 )
-            table = _core.EverettTable(data["levels"], data["everett"], float(data["y_min"]))
+            interp = str(data["interpolation"]) if "interpolation" in data.files else "bilinear"
+            table = _core.EverettTable(
+                data["levels"], data["everett"], float(data["y_min"]), interp
+            )
             info = json.loads(str(data["info"]))
         b = info.get("base", {})
         base = PreisachModel(

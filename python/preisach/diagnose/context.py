@@ -94,10 +94,11 @@ class Fold:
 def prior_everett(model: PreisachModel, levels: Array) -> Array:
     """Return the given model's Everett table on ``levels`` (V): the refit's prior weights.
 
-    On the model's own grid (or a coarser one) its table interpolated as it simulates
-    (bilinearly).  On a finer grid the table's nodes are interpolated by a bicubic spline of
-    its antisymmetric extension ``E(a, b) = -E(b, a)`` (smooth across the diagonal, where
-    the reversible part makes ``E`` linear in ``a - b``): a bilinear table is a poor prior
+    On the model's own grid (or a coarser one), and on any grid for a cubic model, its table
+    interpolated as it simulates.  On a finer grid than a bilinear model's the table's nodes
+    are interpolated by a bicubic spline of its antisymmetric extension
+    ``E(a, b) = -E(b, a)`` (smooth across the diagonal, where the reversible part makes ``E``
+    linear in ``a - b``): a bilinear table is a poor prior
     for the finer grid's nodes of a smooth density.  On the 26 densities of a blind seed
     (Gaussian, lognormal, ridge and two-component densities; 6.5-8.5 V) the bilinear
     interpolant of a 22-level grid missed the Everett function by 13-36 mV RMS, the bicubic
@@ -107,7 +108,7 @@ def prior_everett(model: PreisachModel, levels: Array) -> Array:
     lv = np.asarray(levels, float)
     own = np.asarray(model.levels, float)
     a, b = np.meshgrid(lv, lv, indexing="ij")
-    if lv.size <= own.size or own.size < 4:
+    if lv.size <= own.size or own.size < 4 or model.interpolation == "cubic":
         return np.asarray(model.everett(a, np.minimum(a, b)), float)
     from scipy.interpolate import RectBivariateSpline
 
@@ -189,6 +190,8 @@ class Context:
         self._last_problem: Any = None
         self.n_evals = 0
         self.refit = bool(refit)
+        #: the refit's interpolation between its nodes: the given model's
+        self.interpolation = model.interpolation
         if self.refit:
             lv = model.levels
             if levels is not None:  # a grid chosen by the diagnosis (see choose_grid)
@@ -216,7 +219,9 @@ class Context:
             n = self.levels.size
             v = np.zeros((n, n))
             v[self._ii, self._jj] = base.theta[:-1]
-            base.table = _core.EverettTable(self.levels, v, float(base.theta[-1]))
+            base.table = _core.EverettTable(
+                self.levels, v, float(base.theta[-1]), self.interpolation
+            )
         return base.table
 
     def history(self, i: int, base: Base) -> History | None:
@@ -269,7 +274,9 @@ class Context:
         if u is None and key in self._R:
             return self._R[key]
         x = r.u if u is None else u
-        indptr, idx, data, _ = _core.regressor_rows(self.levels, x, self.state(i, b, u), "clamp")
+        indptr, idx, data, _ = _core.regressor_rows(
+            self.levels, x, self.state(i, b, u), "clamp", self.interpolation
+        )
         R = sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(r.n, self.n_theta))
         if u is None:
             self._R[key] = R

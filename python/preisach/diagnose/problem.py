@@ -185,7 +185,9 @@ class Problem:
                 ue, target = ue_open, r.y
             fold = self._fold(i, coarse)
             s0 = ctx.state(i, self.fixed.base, ue)
-            gram, b, *_ = _core.normal_equations(ctx.levels, ue, target, s0, fold, 1, "clamp")
+            gram, b, *_ = _core.normal_equations(
+                ctx.levels, ue, target, s0, fold, 1, "clamp", ctx.interpolation
+            )
             return gram[0], b[0], ue
 
         # the recordings are independent and the C++ loops release the GIL: one per core,
@@ -359,6 +361,7 @@ class Problem:
                 ctx.theta0,
                 filters=filters,
                 reference=ctx.table(self.fixed.base) if any(filters) else None,
+                interpolation=ctx.interpolation,
             ),
             dtype=np.float64,
         )

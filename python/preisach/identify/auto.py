@@ -75,7 +75,9 @@ def mirror_model(model: PreisachModel) -> PreisachModel:
     """
     lv = model.levels
     values = np.asarray(model.table.values)[::-1, ::-1].T
-    table = _core.EverettTable(-lv[::-1], np.ascontiguousarray(values), -model.y_max)
+    table = _core.EverettTable(
+        -lv[::-1], np.ascontiguousarray(values), -model.y_max, model.interpolation
+    )
     return PreisachModel(
         table,
         name=model.name,

@@ -279,6 +279,7 @@ class IdentificationReport:
             ),
             f"  output delay: {self.delay:g} samples"
             + ("" if self.delay_estimate is None else f" ({self.delay_estimate.describe()})"),
+            f"  interpolation between the nodes: {self._interpolation_text()}",
             f"  time: {self.elapsed:.3f} s",
             "  data:",
         ]
@@ -342,11 +343,26 @@ class IdentificationReport:
     def __str__(self) -> str:
         return self.summary()
 
+    def _interpolation_text(self) -> str:
+        c = self.model.metadata.get("interpolation")
+        kind = self.model.interpolation
+        if not isinstance(c, dict) or "rms_cubic" not in c:
+            return kind
+        uo = self.output_units
+        return (
+            f"{kind} (RMS residual on the recordings: bilinear {c['rms_bilinear']:.4g} {uo}, "
+            f"cubic {c['rms_cubic']:.4g} {uo}; cubic needs {100 * c['margin']:.0f} % less)"
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-friendly form (no arrays of samples)."""
+        choice = self.model.metadata.get("interpolation")
         out: dict[str, Any] = {
             "method": self.method,
             "choice": self.choice,
+            "interpolation": choice
+            if isinstance(choice, dict)
+            else {"interpolation": self.model.interpolation},
             "model": repr(self.model),
             "levels": self.model.levels.tolist(),
             "y_min": self.model.y_min,
