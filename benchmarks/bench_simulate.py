@@ -5,7 +5,9 @@ Prints, from one run on this machine (ratios are what matter: machines here are 
   * samples/s of the plain NumPy relay-grid reference (200 x 200 cells) on the same input
     (a prefix of it: the reference is too slow for all of it), its BLAS pinned to one thread
     (a fair single-core reference), and the ratio;
-  * batch throughput on 1 thread and on the cores obtained, and the speed-up.
+  * batch throughput on 1 thread and on the cores obtained, and the speed-up;
+  * the same table interpolated cubically (a 4 x 4 node stencil per look-up instead of 2 x 2)
+    against bilinearly: samples/s and the ratio.
 
 Every speed-up is printed next to the cores this process obtained (``os.sched_getaffinity``;
 on a shared machine other jobs take some of them).
@@ -45,6 +47,8 @@ def main() -> None:
     s0 = model.negative_saturation()
     t_fast, _ = best_of(lambda: model.simulate(u, s0), args.repeats)
     fast = args.samples / t_fast
+    cubic = model.with_interpolation("cubic")
+    t_cubic, _ = best_of(lambda: cubic.simulate(u, s0), args.repeats)
 
     ref = RelayGrid.from_everett(TABLE_3_1[1].everett, -100.0, 100.0, 200, model.y_min)
     ur = u[: args.reference_samples]
@@ -74,6 +78,10 @@ def main() -> None:
     print(
         f"speed ratio simulate / relay grid: {fast / slow:,.0f}x "
         f"(both on 1 thread; {cores} cores obtained)"
+    )
+    print(
+        f"cubic interpolation: {args.samples / t_cubic / 1e6:8.1f} M samples/s, "
+        f"{t_cubic / t_fast:.2f}x the bilinear time (same table, same run)"
     )
     print(
         f"batch {runs} runs x {per} samples: 1 thread {runs * per / t1 / 1e6:.1f} M/s, "

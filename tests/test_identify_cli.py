@@ -206,3 +206,22 @@ def test_verify_reports_inputs_outside_the_model_range(files, tmp_path, capsys):
     assert f"preisach verify: warning: overdriven: {n_out} of 600 input samples" in captured.err
     rows = {ln.split()[0]: ln.split() for ln in captured.out.splitlines()[3:]}
     assert rows["overdriven"][1:3] == ["600", str(n_out)] and rows["cml"][2] == "0"
+
+
+def test_identify_interpolation_is_chosen_or_forced_and_stored(files, capsys):
+    auto, forced = files["dir"] / "auto.npz", files["dir"] / "bilinear.npz"
+    assert run(["identify", files["fod_sweep"], "-o", str(auto), "--method", "fod"]) == 0
+    out = capsys.readouterr().out
+    assert "interpolation between the nodes:" in out
+    m = PreisachModel.load(auto)
+    choice = m.metadata["interpolation"]
+    assert m.interpolation == choice["interpolation"]
+    best = "cubic" if choice["rms_cubic"] <= 0.9 * choice["rms_bilinear"] else "bilinear"
+    assert m.interpolation == best
+    argv = ["identify", files["fod_sweep"], "-o", str(forced), "--interpolation", "bilinear"]
+    assert run(argv) == 0
+    assert PreisachModel.load(forced).interpolation == "bilinear"
+    capsys.readouterr()
+    bad = ["identify", files["fod_sweep"], "-o", str(forced), "--method", "lsq"]
+    assert run([*bad, "--levels", "11", "--interpolation", "cubic"]) == 1
+    assert "applies to the fod method only" in capsys.readouterr().err

@@ -124,6 +124,7 @@ def identify(
     solver: str = "auto",
     y_min_source: str = "column_mean",
     progress: bool = True,
+    interpolation: str = "auto",
 ) -> IdentificationReport:
     """Identify a model from recordings with the method the data call for (or the one given).
 
@@ -156,6 +157,10 @@ def identify(
         surface: where ``y_min`` comes from.
     progress : bool
         lsq: show a progress bar over the cross-validation fits (``False``: nothing).
+    interpolation : {"auto", "bilinear", "cubic"}
+        fod: the table's interpolation between the nodes (``"auto"``: the one whose residual
+        on the recordings is lower, cubic by at least 10 %; see
+        :func:`~preisach.identify.identify_fod`).
 
     Returns
     -------
@@ -208,6 +213,11 @@ def identify(
             )
     if chosen != "fod" and project:
         raise ValueError("project applies to the fod method only")
+    if chosen != "fod" and interpolation not in ("auto", "bilinear"):
+        raise ValueError(
+            f"interpolation: {interpolation!r} applies to the fod method only "
+            f"(this identification is {chosen})"
+        )
     score, score_name = None, ""
     if chosen == "fod":  # the method is chosen on the recordings as given (a few samples of
         # delay do not change which curves they hold); the delay is then scored by the model
@@ -217,7 +227,13 @@ def identify(
     data = _mirrored(recs) if mirrored else recs
     if chosen == "fod":
         rep = identify_fod(
-            data, levels, project=project, name=name, initial_state=initial_state, delay=0
+            data,
+            levels,
+            project=project,
+            name=name,
+            initial_state=initial_state,
+            delay=0,
+            interpolation=interpolation,
         )
     elif chosen == "surface":
         rep = identify_surface(
