@@ -88,6 +88,19 @@ inline std::vector<double> random_inputs(std::mt19937& g, std::size_t n, double 
     return u;
 }
 
+// A random antidiagonal segment alpha = c - beta, beta in [b0, b1] (b0 <= b1), that stays
+// inside the range and on or below the diagonal (alpha in [beta, U_MAX]).
+struct Antidiagonal {
+    double c, b0, b1;
+};
+inline Antidiagonal random_antidiagonal(std::mt19937& g) {
+    const double c = uniform(g, 2.0 * U_MIN + 0.2, 2.0 * U_MAX - 0.2);
+    const double lo = std::max(U_MIN, c - U_MAX), hi = 0.5 * c;
+    double b0 = uniform(g, lo, hi), b1 = uniform(g, lo, hi);
+    if (b0 > b1) std::swap(b0, b1);
+    return {c, b0, b1};
+}
+
 // A random starting state: negative or positive saturation or a neutral state.
 inline State random_start(std::mt19937& g) {
     const int kind = std::uniform_int_distribution<int>(0, 2)(g);

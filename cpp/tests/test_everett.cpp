@@ -289,11 +289,7 @@ TEST_CASE("everett: antidiagonal_integral equals a Riemann sum of -dE/dbeta") {
     std::mt19937 g(16);
     for (const EverettTable& t : both_tables()) {
         for (int r = 0; r < 40; ++r) {
-            // alpha = c - beta must stay in [beta, U_MAX] for beta in [b0, b1].
-            const double c = uniform(g, 2.0 * U_MIN + 0.2, 2.0 * U_MAX - 0.2);
-            const double lo = std::max(U_MIN, c - U_MAX), hi = 0.5 * c;
-            double b0 = uniform(g, lo, hi), b1 = uniform(g, lo, hi);
-            if (b0 > b1) std::swap(b0, b1);
+            const auto [c, b0, b1] = random_antidiagonal(g);
             const int m = 20000;
             const double db = (b1 - b0) / m, fd = 1e-7;
             double sum = 0.0;
