@@ -115,8 +115,9 @@ class DiagnosisReport:
         ``classical`` (None, or when nothing was kept above the bound with a refitted base:
         the resolution check of :func:`~preisach.diagnose.selection.resolution_check` -
         ``ratio``, ``heldout_rmse``, ``levels``, ``smoothing``, ``stretch_s``, ``seconds``,
-        ``consistent``, ``statement``) and ``consistent`` (``ratio <= threshold``, or the
-        classical check's ratio within it).
+        ``consistent``, ``statement``, ``output_curve`` and ``drift``: what a static output
+        curve and a drift in time add to the fine model, in noise variances, with ``p``)
+        and ``consistent`` (``ratio <= threshold``, or the classical check's verdict).
     unexplained : dict or None
         When the final held-out residual is above ``threshold`` times the noise: ``ratio``,
         ``statement`` (the localisation in words), ``where`` (recordings, input range,

@@ -300,7 +300,15 @@ def fine_system(
     n = int(levels)
     lv = np.linspace(ctx.model.u_min, ctx.model.u_max, n)
     p = n * (n - 1) // 2 + 1
-    state = [running_range_basis(r.u, r.dt, state_knots, 4.0 * stretch) for r in ctx.recs]
+    # an unknown initial state is free; a known one (a saturation, a given state) leaves
+    # only the recording's own offset - a function of the running range there would be
+    # freedom no initial state gives, enough to follow a slow drift while the range grows
+    state = [
+        running_range_basis(r.u, r.dt, state_knots, 4.0 * stretch)
+        if r.history is not None
+        else np.ones((r.n, 1))
+        for r in ctx.recs
+    ]
     own = [B if extra is None else np.hstack([B, extra[i]]) for i, B in enumerate(state)]
     offs = np.cumsum([0] + [B.shape[1] for B in own])
     q = int(offs[-1])
@@ -395,7 +403,8 @@ def classical_check(
     a roughness penalty (:func:`density_roughness`, weight ``smoothing`` relative to the
     mean diagonal of the normal matrix; a ridge of 1e-7 toward the given model's Everett
     function fixes what nothing constrains), with each recording's unknown initial state
-    free (the chosen one plus :func:`running_range_basis`), is fitted by least squares to
+    free (the chosen one plus :func:`running_range_basis`; a recording whose initial state
+    is known gets its own output offset only), is fitted by least squares to
     the identification recordings and every other ``stretch``-second stretch of the
     diagnosis recordings, and predicts the stretches in between (two folds, each sample
     predicted by the fit that did not see it).
