@@ -405,12 +405,15 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
     chk = classical_check(ctx, sigma)
     ok = bool(chk.ratio <= noise_ratio)
     n = int(ctx.levels.size)
+    within = (
+        f"a classical Preisach model on a {chk.levels}-level grid (smooth density) predicts "
+        f"interleaved {1e3 * chk.stretch:.0f} ms held-out stretches at {chk.ratio:.3g} x "
+        f"the noise (bound {noise_ratio:g} x)"
+    )
     if ok:
         statement = (
-            f"a classical Preisach model on a {chk.levels}-level grid (smooth density) predicts "
-            f"interleaved {1e3 * chk.stretch:.0f} ms held-out stretches at {chk.ratio:.3g} x "
-            f"the noise (bound {noise_ratio:g} x): the residual the {n}-level base leaves is its "
-            "resolution, not missing physics"
+            f"{within}: the residual the {n}-level base leaves is its resolution, not missing "
+            "physics"
         )
     else:
         statement = (
@@ -426,10 +429,8 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
         if cc.gain >= CURVE_BEYOND_CLASSICAL and cc.p < 0.01:
             ok = False
             statement = (
-                f"a classical Preisach model on a {chk.levels}-level grid (smooth density) "
-                f"predicts interleaved {1e3 * chk.stretch:.0f} ms held-out stretches at "
-                f"{chk.ratio:.3g} x the noise (bound {noise_ratio:g} x), but a static curve of "
-                f"the output adds {cc.gain:.2g} x the noise variance to it (p = {cc.p:.2g}; bar "
+                f"{within}, but a static curve of the output adds {cc.gain:.2g} x the noise "
+                f"variance to it (p = {cc.p:.2g}; bar "
                 f"{CURVE_BEYOND_CLASSICAL:g}): loop heights change with the output level, which "
                 "no classical Preisach model does - non-congruence (e.g. a product model) or a "
                 "sensor reading through a nonlinear curve; the same minor loop at several "
@@ -442,10 +443,8 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
         if gain >= DRIFT_BEYOND_CLASSICAL and p < 0.01:
             ok = False
             statement = (
-                f"a classical Preisach model on a {chk.levels}-level grid (smooth density) "
-                f"predicts interleaved {1e3 * chk.stretch:.0f} ms held-out stretches at "
-                f"{chk.ratio:.3g} x the noise (bound {noise_ratio:g} x), but a slow drift in "
-                f"time adds {gain:.2g} x the noise variance to it (p = {p:.2g}; bar "
+                f"{within}, but a slow drift in time adds {gain:.2g} x the noise variance to "
+                f"it (p = {p:.2g}; bar "
                 f"{DRIFT_BEYOND_CLASSICAL:g}): the recordings change in time in a way no "
                 "classical Preisach model follows, even with its initial states free - a "
                 "sensor drift, creep or a temperature change; the same step-and-hold at the "
