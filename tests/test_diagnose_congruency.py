@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _inputs import offset_loops
 from preisach import PreisachModel, Recording, _core
 from preisach.diagnose.congruency import CURVE_BEYOND_CLASSICAL
 from preisach.diagnose.context import Context
 from preisach.diagnose.data import prepare_recordings
 from preisach.diagnose.selection import resolution_check
 from preisach.identify import identify_fod
-from preisach.waveforms import fod_sweep, legs
+from preisach.waveforms import fod_sweep
 
 
 def _device(u: np.ndarray, stiffening: float, seed: int) -> np.ndarray:
@@ -34,12 +35,7 @@ def _context(stiffening: float) -> tuple[Context, float]:
     ident = Recording.from_arrays(
         t=np.arange(sweep.size) * dt, u=sweep, y=_device(sweep, stiffening, 0)
     )
-    pts = [-100.0]
-    for direction in (1, -1):  # the same 16 V loop at five drive offsets, both ways
-        for o in np.linspace(-60.0, 60.0, 5)[::direction]:
-            pts += [float(o), float(o + 16.0 * direction), float(o)]
-        pts.append(100.0 if direction > 0 else -100.0)
-    u = np.concatenate([np.full(25, -100.0), legs(pts, 0.1, sample_time=dt).u])
+    u = np.concatenate([np.full(25, -100.0), offset_loops(dt)])
     rec = Recording.from_arrays(t=np.arange(u.size) * dt, u=u, y=_device(u, stiffening, 1))
     model = identify_fod(ident, 11).model
     ctx = Context(model, prepare_recordings(model, [rec], identification=[ident]), refit=True)

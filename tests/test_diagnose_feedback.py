@@ -151,6 +151,7 @@ def test_non_congruence_named_on_a_saturating_interaction():
     offsets, reached from below and from above, and a slow multi-sine.  Fails when the
     feedback candidate stops naming a form it was not written for.
     """
+    from _inputs import offset_loops
     from preisach.diagnose import diagnose
     from preisach.identify import identify_fod
     from preisach.waveforms import fod_sweep, legs
@@ -160,12 +161,7 @@ def test_non_congruence_named_on_a_saturating_interaction():
     ident = Recording.from_arrays(
         t=np.arange(sweep.size) * dt, u=sweep, y=_saturating_interaction_device(sweep, 0)
     )
-    pts = [-100.0]
-    for direction in (1, -1):
-        for o in np.linspace(-60.0, 60.0, 5)[::direction]:
-            pts += [float(o), float(o + 16.0 * direction), float(o)]
-        pts.append(100.0 if direction > 0 else -100.0)
-    ladder = legs(pts, 0.1, sample_time=dt).u
+    ladder = offset_loops(dt)
     t = np.arange(2500) * dt
     ms = np.concatenate(
         [legs([-100.0, 0.0], 0.3, sample_time=dt).u, 70 * np.sin(2 * np.pi * 1.3 * t)]

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _inputs import offset_loops
 from preisach import PreisachModel, Recording, _core
 from preisach.diagnose.context import Context
 from preisach.diagnose.data import prepare_recordings
 from preisach.diagnose.selection import DRIFT_BEYOND_CLASSICAL, resolution_check
 from preisach.identify import identify_fod
-from preisach.waveforms import fod_sweep, legs
+from preisach.waveforms import fod_sweep
 
 DT, NOISE = 2e-3, 1e-3
 
@@ -31,12 +32,7 @@ def _context(swing: float) -> Context:
     """Two loop experiments after the sweep; the sensor offset swings by ``swing`` (V)."""
     sweep = fod_sweep(np.linspace(-100.0, 100.0, 11), frequency=2.0, sample_time=DT).u
     ident = Recording.from_arrays(t=np.arange(sweep.size) * DT, u=sweep, y=_device(sweep, 0))
-    pts = [-100.0]
-    for direction in (1, -1):  # a 16 V loop at five drive offsets, both ways
-        for o in np.linspace(-60.0, 60.0, 5)[::direction]:
-            pts += [float(o), float(o + 16.0 * direction), float(o)]
-        pts.append(100.0 if direction > 0 else -100.0)
-    u = np.concatenate([np.full(25, -100.0), legs(pts, 0.1, sample_time=DT).u])
+    u = np.concatenate([np.full(25, -100.0), offset_loops(DT)])
     t = np.arange(u.size) * DT
     recs = []
     for k in range(2):  # the temperature swings with a 12 s period over the 10 s run

@@ -1,0 +1,21 @@
+"""Test inputs shared by several diagnosis tests (volts, on the SS15 range of ±100 V)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from preisach.waveforms import legs
+
+
+def offset_loops(sample_time: float) -> NDArray[np.float64]:
+    """The same 16 V minor loop at five drive offsets (-60 to 60 V), up the range and down.
+
+    Starts at -100 V, 0.1 s per leg; loops at several output levels are what separate a
+    congruent (classical) device from one whose loops change with the output level.
+    """
+    pts = [-100.0]
+    for direction in (1, -1):
+        for o in np.linspace(-60.0, 60.0, 5)[::direction]:
+            pts += [float(o), float(o + 16.0 * direction), float(o)]
+        pts.append(100.0 if direction > 0 else -100.0)
+    return np.asarray(legs(pts, 0.1, sample_time=sample_time).u, float)
