@@ -615,3 +615,28 @@ def test_refit_base_is_chosen_when_the_model_grid_fails():
     assert rep.verdict == "none" and rep.unexplained is None
     assert g["statement"] in rep.notes
     assert json.loads(rep.to_json())["base_grid"]["levels"] == g["levels"]
+
+
+def test_unknown_starts_are_named_when_non_congruence_is_not_found():
+    """The report says when non-congruence was tried on recordings of unknown initial state.
+
+    Fails when the note goes missing although non-congruence was tried and not kept on
+    recordings that start from an unknown state, or appears when their states are known,
+    non-congruence was kept, or it was not tried.
+    """
+    from types import SimpleNamespace
+
+    from preisach.diagnose.core import _unknown_start_note
+
+    def ctx(*histories):
+        recs = [SimpleNamespace(history=h) for h in histories]
+        return SimpleNamespace(recs=recs, diag=list(range(len(recs))))
+
+    tried = [SimpleNamespace(scores={"non_congruence": None, "delay": None})]
+    note = _unknown_start_note(ctx("unknown", None, "unknown"), tried, ["delay"])
+    assert note is not None and note.startswith("2 of 3 recordings start from an unknown")
+    assert "saturation" in note
+    assert _unknown_start_note(ctx(None, None), tried, []) is None  # known states
+    assert _unknown_start_note(ctx("unknown"), tried, ["non_congruence"]) is None  # kept
+    untried = [SimpleNamespace(scores={"delay": None})]
+    assert _unknown_start_note(ctx("unknown"), untried, []) is None

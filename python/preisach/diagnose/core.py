@@ -36,6 +36,7 @@ from .scoring import sign_flip_p
 from .selection import (
     GridChoice,
     Selection,
+    StepResult,
     choose_grid,
     final_implausible,
     resolution_check,
@@ -635,6 +636,30 @@ def _wander_drift(
     )
 
 
+def _unknown_start_note(
+    ctx: Context, steps: Sequence[StepResult], names: Sequence[str]
+) -> str | None:
+    """Say so when non-congruence was tested, not kept, and recordings start from unknown states.
+
+    The output feedback of the non-congruence candidates shifts the relays' input, so an
+    unknown initial state chosen as a nuisance is wrong for it until the input has visited
+    its extremes, and the profiled weights absorb that error.  Measured on a moving model
+    of known feedback (docs/diagnosis.md, section 5h): 2.07 mV of training error at the
+    true feedback when every recording starts from saturation (2 mV noise), 7-11 mV when
+    they start at 0 V from unknown states - the feedback is then not found.
+    """
+    tried = any(n.split("/")[0] == "non_congruence" for st in steps for n in st.scores)
+    unknown = [i for i in ctx.diag if ctx.recs[i].history is not None]
+    if not tried or "non_congruence" in names or not unknown:
+        return None
+    return (
+        f"{len(unknown)} of {len(ctx.diag)} recordings start from an unknown initial state "
+        "(chosen as a nuisance), so loops that change with the output level (non-congruence) "
+        "are fitted unreliably before the input has visited its extremes and can be missed; "
+        "to test for them, start each experiment from a range end (saturation)"
+    )
+
+
 def _report(
     model: PreisachModel,
     ctx: Context,
@@ -747,6 +772,9 @@ def _report(
         notes.append(grid["statement"])
     if noise_test["classical"] is not None:
         notes.append(noise_test["classical"]["statement"])
+    start_note = _unknown_start_note(ctx, steps, names)
+    if start_note:
+        notes.append(start_note)
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "
