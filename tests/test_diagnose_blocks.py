@@ -19,6 +19,7 @@ from preisach.diagnose import (
     PronyCreep,
     RateDependentPlay,
     RateDependentWidth,
+    ReversibleRelaxation,
     SecondOrderMode,
     SensorDrift,
 )
@@ -157,6 +158,24 @@ def test_rate_dependent_width_scales_the_hysteretic_deviation():
     assert y[-1] == pytest.approx(2.0 + 0.1 * 0.1 * 1.0, rel=1e-3)
     with pytest.raises(TypeError, match="apply"):
         w.run(x)
+
+
+def test_reversible_relaxation_lags_a_ramp_by_k_tau_rate_and_settles():
+    tau, k, rate = 0.6e-3, 0.02, 800.0  # s, V/V, V/s
+    b = ReversibleRelaxation(DT, k=k, tau=tau)
+    u = np.concatenate([rate * DT * np.arange(400), np.full(100, rate * DT * 399)])
+    x = np.zeros(u.size)
+    y = b.apply(x, u)
+    p = math.exp(-DT / tau)  # a ramp under the exact zero-order-hold lag: u - z = p R dt/(1-p)
+    assert y[399] == pytest.approx(-k * p * rate * DT / (1 - p), rel=1e-9)
+    assert abs(y[-1]) < 1e-12 * k * rate  # a held input settles within a few tau
+    np.testing.assert_array_equal(b.apply(x, np.full(u.size, 3.0)), x)  # none at rest
+    back = effect_from_dict(b.to_dict())
+    assert type(back) is ReversibleRelaxation and back.params == b.params
+    with pytest.raises(TypeError, match="apply"):
+        b.run(x)
+    with pytest.raises(ValueError, match="tau"):
+        ReversibleRelaxation(DT, k=k, tau=0.0)
 
 
 def test_parameter_errors_name_block_and_parameter():

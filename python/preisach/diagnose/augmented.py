@@ -20,7 +20,13 @@ from numpy.typing import ArrayLike
 from .. import _core
 from .._io import atomic_write, npz_load_error
 from ..model import PreisachModel, SimulationResult, State
-from .effects import EffectBlock, FeedbackBlock, RateDependentWidth, effect_from_dict
+from .effects import (
+    EffectBlock,
+    FeedbackBlock,
+    RateDependentWidth,
+    ReversibleRelaxation,
+    effect_from_dict,
+)
 
 __all__ = ["AugmentedModel", "load_model"]
 
@@ -180,6 +186,9 @@ class AugmentedModel:
                 grid = np.linspace(self.base.u_min, self.base.u_max, 401)
                 anh = np.interp(x, grid, np.asarray(_core.neutral_locus(self.base.table, grid)))
                 y = blk.apply(y, x, anh)
+                continue
+            if isinstance(blk, ReversibleRelaxation):
+                y = blk.apply(y, x)
                 continue
             y0 = blk.reset(y0)
             y = blk.run(y)

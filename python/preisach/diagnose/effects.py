@@ -70,6 +70,7 @@ __all__ = [
     "OutputFeedback",
     "RateDependentPlay",
     "RateDependentWidth",
+    "ReversibleRelaxation",
     "SensorDrift",
     "SecondOrderMode",
     "FeedbackBlock",
@@ -880,6 +881,51 @@ class RateDependentWidth(EffectBlock):
         )
 
 
+class ReversibleRelaxation(EffectBlock):
+    """Rate-dependent hysteresis from a reversible part that relaxes (output side).
+
+    ``y = x - k (u - z)``, ``tau dz/dt = u - z`` (exact under a zero-order hold, settled at
+    the first input): a share ``k`` (V of output per V of input) of the linear, reversible
+    response follows the input through a first-order relaxation of time constant ``tau`` -
+    the Debye relaxation of the dielectric polarisation behind the intrinsic piezoelectric
+    effect.  At an input rate ``du/dt`` the output falls behind by about
+    ``k tau du/dt``: the loops widen in proportion to the rate, elliptically, whatever the
+    hysteretic state (a delay of the output instead lags by ``tau dy/dt``, in proportion to
+    the loop's slope), and a held input settles within a few ``tau``.  The block needs the
+    input besides ``x``, so diagnosis and :class:`~preisach.diagnose.AugmentedModel` call
+    :meth:`apply`; :meth:`run` is not available.
+
+    Parameters
+    ----------
+    k : float
+        Relaxing share of the reversible response (V/V), >= 0.
+    tau : float
+        Relaxation time constant (s), > 0.
+
+    """
+
+    kind = "rate_dependence"
+    side = "output"
+    PARAMS = (("k", "V/V"), ("tau", "s"))
+    DOMAIN = {"k": ">=0", "tau": ">0"}
+
+    def reset(self, x0: float) -> float:
+        """At rest (settled): returns ``x0``."""
+        return _finite(self.kind, "x0", x0)
+
+    def _run(self, x: Array) -> Array:
+        raise TypeError("rate_dependence (relaxation): needs the input; use apply()")
+
+    def apply(self, x: ArrayLike, u: ArrayLike) -> Array:
+        """Output (V) for the Preisach output ``x`` (V) and the input ``u`` (V), from rest."""
+        uu = np.asarray(u, dtype=float)
+        xx = np.asarray(x, dtype=float)
+        if uu.size == 0:
+            return xx.copy()
+        z = _lag(uu, math.exp(-self.dt / self._params["tau"]), float(uu[0]))
+        return np.asarray(xx - self._params["k"] * (uu - z), dtype=float)
+
+
 class GainOffset(EffectBlock):
     """Calibration error: the output scale and zero differ from the model's (output side).
 
@@ -917,6 +963,7 @@ EFFECT_TYPES: dict[str, type[EffectBlock]] = {
         FirstOrderOutputLag,
         RateDependentPlay,
         RateDependentWidth,
+        ReversibleRelaxation,
         SensorDrift,
         LevelDependentGain,
         OutputFeedback,

@@ -20,7 +20,9 @@ from .candidates import (
     RateCandidate,
     RateLagCandidate,
     RateWidthCandidate,
+    RelaxationCandidate,
     SensorNonlinearityCandidate,
+    ViscousCandidate,
 )
 from .rate_family import RateFamilyCandidate
 
@@ -34,6 +36,8 @@ CANDIDATES: dict[str, type[Candidate]] = {
         RateCandidate,
         RateWidthCandidate,
         RateFamilyCandidate,
+        RelaxationCandidate,
+        ViscousCandidate,
         ModeCandidate,
         CreepCandidate,
         DelayCandidate,
