@@ -12,6 +12,7 @@ from preisach.diagnose.effects import (
     GainOffset,
     OutputFeedback,
     PronyCreep,
+    ReversibleRelaxation,
     SecondOrderMode,
 )
 
@@ -88,6 +89,9 @@ def test_not_invertible_blocks_are_refused():
     fb = AugmentedModel(BASE, [OutputFeedback(DT, a=0.1, b=0.0, c=0.0, y_c=0.0, span=10.0)])
     with pytest.raises(ValueError, match="not invertible"):
         invert_augmented(fb, sine(), sample_time=DT)
+    relax = AugmentedModel(BASE, [ReversibleRelaxation(DT, k=0.01, tau=1e-3)])
+    with pytest.raises(ValueError, match="rate_dependence.*not invertible"):
+        invert_augmented(relax, sine(), sample_time=DT)
     with pytest.raises(ValueError, match="r_max"):
         invert_augmented(AugmentedModel(BASE, []), sine(), sample_time=DT, r_max=1.0)
     with pytest.raises(ValueError, match="not finite"):

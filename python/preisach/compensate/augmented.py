@@ -31,7 +31,9 @@ What is inverted, and how (``dt`` the sample time):
     input range, counted in ``extra["clamped"]``).
 
 Not invertible here (:class:`ValueError` naming the block): output feedback (the moving
-model), the rate-dependent play and the rate-dependent loop width.
+model), the rate-dependent play, the rate-dependent loop width and the relaxing reversible
+response (``rate_dependence`` forms ``relaxation``/``viscous``: it acts on the drive itself,
+so the Preisach stage and it would have to be solved together at every sample).
 """
 
 from __future__ import annotations
