@@ -116,6 +116,22 @@ def test_held_out_measurements_do_not_enter_the_fit(drive):
     assert np.allclose(a.b, b.b) and np.allclose(a.a, b.a)
 
 
+def test_a_drift_basis_is_projected_off_the_training_rows(drive):
+    """With a drift kept, the drift basis (every sample) is projected off the fitted rows.
+
+    Fails when the basis is not cut to those rows (the fit then stopped with a shape error
+    whenever a drift was kept before a linear-dynamics form was tried, seen on blind seed 16
+    case 017).
+    """
+    t = np.arange(N) * DT
+    y = _run(FractionalDelay(DT, tau=3e-3), drive) + 0.2 * (t / t[-1]) ** 2  # a slow drift
+    train = (np.arange(N) // 500) % 2 == 0
+    drift = np.column_stack([np.ones(N), t, t**2])
+    fit = fit_linear_block([drive], [y], [train], DT, n_taps=30, nuisance=[drift])
+    cls = classify(fit)
+    assert cls.kind in ("delay", "short") and 1e3 * cls.tau0 == pytest.approx(3.0, rel=0.1)
+
+
 def test_a_pure_delay_is_not_a_mode(drive):
     """The issue-13 failure: a 2.5 ms delay must not come out as a resonance of any damping."""
     y = _run(FractionalDelay(DT, tau=2.5e-3), drive)
