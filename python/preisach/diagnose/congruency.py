@@ -40,7 +40,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import linalg
 
 from .context import Chain, Context
 from .scoring import (
@@ -115,14 +114,8 @@ def output_curve_check(
     sse = np.zeros((2, fs.nb))
     cnt = np.zeros(fs.nb)
     for k in (0, 1):
-        N, rh = fs.normal(k, smoothing)
         for s, keep in enumerate((np.arange(P - len(pw)), np.arange(P))):
-            w = np.zeros(P)
-            w[keep] = linalg.cho_solve(
-                linalg.cho_factor(N[np.ix_(keep, keep)], check_finite=False),
-                rh[keep],
-                check_finite=False,
-            )
+            w = fs.solve(k, smoothing, keep=keep)
             sse_k, cnt_k = fs.heldout_sse(k, w)
             sse[s] += sse_k
         cnt += cnt_k

@@ -359,7 +359,8 @@ def fit_linear_block(
             ok[:j] = False
         rows = np.flatnonzero(ok)
         if rows.size:
-            B = None if nuisance is None or nuisance[k] is None else nuisance[k][rows]
+            nk = None if nuisance is None else nuisance[k]
+            B = None if nk is None else nk[rows]
             R = None if regressors is None else regressors[k][rows]
             recs.append((np.asarray(x, float), np.asarray(y, float), rows, R, B, k))
     if not recs:
