@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import numpy as np
 from numpy.typing import NDArray
+from preisach import Recording
 from preisach.waveforms import legs
 
 
@@ -19,3 +22,28 @@ def offset_loops(sample_time: float) -> NDArray[np.float64]:
             pts += [float(o), float(o + 16.0 * direction), float(o)]
         pts.append(100.0 if direction > 0 else -100.0)
     return np.asarray(legs(pts, 0.1, sample_time=sample_time).u, float)
+
+
+def session(
+    parts: Sequence[tuple[str, NDArray[np.float64]]],
+    simulate: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    noise: float,
+    seed: int,
+    sample_time: float,
+) -> list[Recording]:
+    """One continuous history of the named inputs through ``simulate``, cut into recordings.
+
+    ``noise``: the standard deviation (V) of the white noise added to the outputs.
+    """
+    rng = np.random.default_rng(seed)
+    u_all = np.concatenate([u for _, u in parts])
+    y_all = simulate(u_all) + noise * rng.normal(size=u_all.size)
+    recs, k = [], 0
+    for name, u in parts:
+        recs.append(
+            Recording.from_arrays(
+                u=u, y=y_all[k : k + u.size], sample_time=sample_time, metadata={"name": name}
+            )
+        )
+        k += u.size
+    return recs

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from _inputs import session
 from preisach import PreisachModel, Recording
 from preisach.diagnose import AugmentedModel, diagnose, load_model
 from preisach.diagnose.rate_family import (
@@ -42,18 +43,8 @@ def _inputs(hold: float) -> tuple[np.ndarray, list[tuple[str, np.ndarray]]]:
 
 
 def _recordings(simulate, hold: float, seed: int) -> tuple[Recording, list[Recording]]:
-    rng = np.random.default_rng(seed)
     ident, exps = _inputs(hold)
-    u_all = np.concatenate([ident, *[u for _, u in exps]])
-    y_all = simulate(u_all) + NOISE * rng.normal(size=u_all.size)
-    recs, k = [], 0
-    for name, u in [("sweep", ident), *exps]:  # one continuous history, cut into recordings
-        recs.append(
-            Recording.from_arrays(
-                u=u, y=y_all[k : k + u.size], sample_time=DT, metadata={"name": name}
-            )
-        )
-        k += u.size
+    recs = session([("sweep", ident), *exps], simulate, NOISE, seed, DT)
     return recs[0], recs[1:]
 
 

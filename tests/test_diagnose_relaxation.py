@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from _inputs import session
 from preisach import PreisachModel, Recording
 from preisach.diagnose import AugmentedModel, ReversibleRelaxation, diagnose, load_model
 
@@ -46,18 +47,8 @@ def _inputs() -> tuple[np.ndarray, list[tuple[str, np.ndarray]]]:
 
 
 def _recordings(simulate) -> tuple[Recording, list[Recording]]:
-    rng = np.random.default_rng(11)
     ident, exps = _inputs()
-    u_all = np.concatenate([ident, *[u for _, u in exps]])
-    y_all = simulate(u_all) + NOISE * rng.normal(size=u_all.size)
-    recs, k = [], 0
-    for name, u in [("sweep", ident), *exps]:  # one continuous history, cut into recordings
-        recs.append(
-            Recording.from_arrays(
-                u=u, y=y_all[k : k + u.size], sample_time=DT, metadata={"name": name}
-            )
-        )
-        k += u.size
+    recs = session([("sweep", ident), *exps], simulate, NOISE, 11, DT)
     return recs[0], recs[1:]
 
 
