@@ -563,13 +563,15 @@ class RelaxationCandidate(Candidate):
             if len(x) > 1
             else f"less than a sample time (taken as {1e3 * tau:.3g} ms)"
         )
-        v = ctx.reference_rate
+        v, dt = ctx.reference_rate, ctx.dt_min
+        pole = math.exp(-dt / max(tau, 1e-300))
+        behind = k * v * dt * pole / (1.0 - pole)  # the block's lag on a ramp (k tau v slow)
         ku, unit = display_unit(ctx.output_unit)
         return (
             f"hysteresis loops widen in proportion to the input rate: {_pm(k, _sd(cov, 0))} V/V "
             f"of the reversible response relaxes with a time constant of {tau_text} "
             f"(dielectric relaxation), so at {v:.3g} V/s the output falls behind by "
-            f"{ku * k * tau * v:.3g} {unit} on either branch, whatever the hysteretic state; "
+            f"{ku * behind:.3g} {unit} on either branch, whatever the hysteretic state; "
             "identify the model at the operating rate or keep the relaxation block"
         )
 
