@@ -45,6 +45,18 @@ def test_simulate_of_inverse_reproduces_reachable_references(kind, hist, pts):
     assert np.all(r.input >= MODEL.u_min) and np.all(r.input <= MODEL.u_max)
 
 
+def test_a_target_exactly_at_saturation_is_reached():
+    """Found by the property above in CI: from positive saturation, down to 6 V and up to the
+    range end, the last target is y_max exactly; the inverse gave it but counted it
+    unreachable (no piece's interior holds it)."""
+    s0 = MODEL.positive_saturation()
+    y_ref = MODEL.simulate(walk([6.0, 100.0]), s0).output
+    assert y_ref[-1] == MODEL.y_max
+    r = MODEL.inverse(y_ref, s0)
+    assert r.unreachable == 0 and r.reached.all()
+    np.testing.assert_allclose(r.output, y_ref, rtol=0, atol=1e-9)
+
+
 @settings(max_examples=60, deadline=None)
 @given(initial, st.lists(st.floats(-12.0, 12.0, allow_nan=False), min_size=1, max_size=40))
 def test_arbitrary_references_reached_or_counted(kind, ys):

@@ -102,9 +102,12 @@ public:
         Best b1{u0, std::abs(hnow - h)};
         double u1 = u0;
         const bool f1 = up ? scan_up(h, u1, b1) : scan_down(h, u1, b1);
+        // the nearest output can equal the target to rounding though no piece's interior
+        // holds it (a target exactly at a saturation, reached at the range end)
+        const double rounding = 8.0 * std::numeric_limits<double>::epsilon() * std::max(1.0, std::abs(h));
         if (monotone_) {
             if (f1) return u1;
-            reached = false;
+            reached = b1.err <= rounding;
             return b1.u;
         }
         Best b2{u0, std::abs(hnow - h)};
@@ -112,9 +115,9 @@ public:
         const bool f2 = up ? scan_down(h, u2, b2) : scan_up(h, u2, b2);
         if (f1 && (!f2 || std::abs(u1 - u0) <= std::abs(u2 - u0))) return u1;
         if (f2) return u2;
-        reached = false;
-        if (b2.err < b1.err || (b2.err == b1.err && std::abs(b2.u - u0) < std::abs(b1.u - u0))) return b2.u;
-        return b1.u;
+        const Best& b = (b2.err < b1.err || (b2.err == b1.err && std::abs(b2.u - u0) < std::abs(b1.u - u0))) ? b2 : b1;
+        reached = b.err <= rounding;
+        return b.u;
     }
 
     // Drive the output to `y` (volts): returns the input applied.  Non-finite targets throw
