@@ -203,3 +203,18 @@ def test_core_kernels_errors():
     m = PreisachModel.builtin("ss15-1hz", levels=21)
     with pytest.raises(ValueError, match="span"):
         core.simulate_moving(m.table, np.zeros(3), m.negative_saturation(), 0.1, 0.0, 0.0, 0.0)
+
+
+def test_a_sensor_curve_statement_names_non_congruence_beside_it():
+    """A static curve of the output and loops that change with the output level read alike on
+    loop experiments: the statement names both and the experiment that separates them."""
+    from types import SimpleNamespace
+
+    from preisach.diagnose.candidates import SensorNonlinearityCandidate
+
+    ctx = SimpleNamespace(y_lo=-3.5, y_hi=3.5, y_centre=0.0, y_half_span=3.5)
+    cand = SensorNonlinearityCandidate()
+    cand.prepare(ctx)
+    text = cand.statement(np.array([0.02, -0.01]), None, ctx)
+    assert "the sensor is nonlinear" in text and "non-congruence" in text
+    assert "same minor loop recorded at several output levels" in text

@@ -798,7 +798,10 @@ class SensorNonlinearityCandidate(Candidate):
             f"the sensor is nonlinear: its sensitivity changes from {lo:.4f} near the bottom to "
             f"{hi:.4f} "
             "near the top of the output range relative to the model; calibrate the sensor over its "
-            "range or keep the sensor-curve block"
+            "range or keep the sensor-curve block. The same readings come from minor loops whose "
+            "height changes with the output level (non-congruence: electrostriction, a product "
+            "model); a calibrated sensor, or the same minor loop recorded at several output "
+            "levels, separates them"
         )
 
 
