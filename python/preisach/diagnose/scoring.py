@@ -303,9 +303,12 @@ class FineSystem:
         """Return the coefficients fitted holding out fold ``k`` (zeros outside ``keep``).
 
         ``add``: penalty blocks ``(first column, matrix)`` added to the normal matrix.  The
-        bounded coefficients (:attr:`lo`, :attr:`hi`) are solved exactly: the free ones are
-        eliminated (Schur complement) and the small box-constrained least-squares problem
-        that remains is solved by bounded-variable least squares.
+        bounded coefficients (:attr:`lo`, :attr:`hi`) are solved exactly with the one
+        Cholesky factor of the normal matrix: when the unconstrained solution leaves a bound,
+        the free coefficients follow the bounded ones through ``Y = N^-1[:, b]`` (the
+        bounded block of the inverse is the inverse of the Schur complement), and the small
+        box-constrained least-squares problem in the bounded ones is solved by
+        bounded-variable least squares.
         """
         N, rh = self.normal(k, smoothing)
         for c0, pen in add or []:
@@ -314,28 +317,21 @@ class FineSystem:
         idx = np.arange(P) if keep is None else np.asarray(keep)
         N, rh = N[np.ix_(idx, idx)], rh[idx]
         lo, hi = self.lo[idx], self.hi[idx]
-        w = np.zeros(P)
         fac = linalg.cho_factor(N, check_finite=False)
         x = linalg.cho_solve(fac, rh, check_finite=False)
         bnd = np.flatnonzero(np.isfinite(lo) | np.isfinite(hi))
         if bnd.size and np.any((x[bnd] < lo[bnd]) | (x[bnd] > hi[bnd])):
-            free = np.setdiff1d(np.arange(idx.size), bnd)
-            ff = linalg.cho_factor(N[np.ix_(free, free)], check_finite=False)
-            Z = linalg.cho_solve(ff, N[np.ix_(free, bnd)], check_finite=False)
-            z = linalg.cho_solve(ff, rh[free], check_finite=False)
-            S = N[np.ix_(bnd, bnd)] - N[np.ix_(bnd, free)] @ Z
-            g = rh[bnd] - N[np.ix_(bnd, free)] @ z
-            S = 0.5 * (S + S.T)
-            L = linalg.cholesky(S + 1e-12 * np.trace(S) / bnd.size * np.eye(bnd.size), lower=True)
-            sol = optimize.lsq_linear(
-                L.T,
-                linalg.solve_triangular(L, g, lower=True),
-                bounds=(lo[bnd], hi[bnd]),
-                method="bvls",
-            )
-            x = np.empty(idx.size)
-            x[bnd] = sol.x
-            x[free] = z - Z @ sol.x
+            E = np.zeros((idx.size, bnd.size))
+            E[bnd, np.arange(bnd.size)] = 1.0
+            Y = linalg.cho_solve(fac, E, check_finite=False)
+            Yb = 0.5 * (Y[bnd] + Y[bnd].T)  # the inverse of the Schur complement S
+            R = linalg.cho_factor(Yb, lower=True, check_finite=False)
+            # 1/2 (c - x_b)^T S (c - x_b) = 1/2 |R^-1 (c - x_b)|^2 with Yb = R R^T
+            Rinv = linalg.solve_triangular(R[0], np.eye(bnd.size), lower=True)
+            sol = optimize.lsq_linear(Rinv, Rinv @ x[bnd], bounds=(lo[bnd], hi[bnd]), method="bvls")
+            x = x + Y @ linalg.cho_solve(R, sol.x - x[bnd], check_finite=False)
+            x[bnd] = sol.x  # exactly within the bounds, not to rounding
+        w = np.zeros(P)
         w[idx] = x
         return w
 
