@@ -199,7 +199,9 @@ CHECK_STATE_KNOTS = 16
 STATE_BOUND_FACTOR = 1.5
 
 
-def running_range_basis(u: Array, dt: float, knots: int, spacing: float) -> Array:
+def running_range_basis(
+    u: Array, dt: float, knots: int, spacing: float
+) -> tuple[Array, NDArray[np.int64]]:
     """Basis of the output change an unknown initial state makes (columns, n x k).
 
     With a classical Preisach model, two initial states of a recording give outputs that
@@ -211,13 +213,9 @@ def running_range_basis(u: Array, dt: float, knots: int, spacing: float) -> Arra
     ``h`` is represented by hat functions of ``s`` on at most
     ``knots`` equal intervals of the final range; knots the input passes less than
     ``spacing`` seconds after the previous one are dropped (so that every hat is seen by
-    training and held-out stretches alike).
+    training and held-out stretches alike).  Returns the basis and, per column, the sample
+    at which its knot is first reached.
     """
-    return _range_hats(u, dt, knots, spacing)[0]
-
-
-def _range_hats(u: Array, dt: float, knots: int, spacing: float) -> tuple[Array, NDArray[np.int64]]:
-    """:func:`running_range_basis` and the sample at which each hat's knot is first reached."""
     s = np.maximum.accumulate(u) - np.minimum.accumulate(u)
     top = float(s[-1])
     if top <= 0:
@@ -390,7 +388,7 @@ def fine_system(
             state.append(np.ones((r.n, 1)))
             bounds.append(np.array([np.inf]))
         else:
-            B, at = _range_hats(r.u, r.dt, state_knots, 4.0 * stretch)
+            B, at = running_range_basis(r.u, r.dt, state_knots, 4.0 * stretch)
             state.append(B)
             bd = STATE_BOUND_FACTOR * unvisited_bound(ctx.model, r.u, at)
             bounds.append(np.maximum(bd, 1e-9 * max(ctx.y_span, 1e-12)))  # a box, not a point
