@@ -11,6 +11,7 @@ from preisach import PreisachModel
 from preisach.daq.blocks import make_block
 from preisach.diagnose import (
     EFFECT_TYPES,
+    AugmentedModel,
     FirstOrderInputLag,
     FractionalDelay,
     GainOffset,
@@ -176,6 +177,25 @@ def test_reversible_relaxation_lags_a_ramp_by_k_tau_rate_and_settles():
         b.run(x)
     with pytest.raises(ValueError, match="tau"):
         ReversibleRelaxation(DT, k=k, tau=0.0)
+
+
+def test_augmented_model_runs_the_blocks_that_need_the_preisach_input():
+    m = PreisachModel.builtin("ss15-1hz", levels=21)
+    u = 80 * np.sin(np.linspace(0, 4 * np.pi, 2000))
+    s0 = m.negative_saturation()
+    x = m.simulate(u, s0, sample_time=DT).output
+    grid = np.linspace(m.u_min, m.u_max, 401)
+    anh = np.interp(u, grid, np.asarray(core.neutral_locus(m.table, grid)))
+    w = RateDependentWidth(DT, c=0.1, exponent=1.0, rho_ref=100.0, tau_v=1e-3)
+    r = ReversibleRelaxation(DT, k=0.02, tau=0.6e-3)
+    want = r.apply(w.apply(x, u, anh), u)
+    got = AugmentedModel(m, [w, r]).simulate(u, s0, sample_time=DT).output
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert np.max(np.abs(got - x)) > 0.05  # the blocks act
+    mode = SecondOrderMode(DT, f_n=50.0, zeta=0.1, participation=1.0)
+    assert not mode.needs_chain and w.needs_chain and r.needs_chain
+    with pytest.raises(TypeError, match="run"):
+        mode.apply_chain(x, u, s0, m)
 
 
 def test_parameter_errors_name_block_and_parameter():

@@ -23,8 +23,6 @@ from ..model import PreisachModel, SimulationResult, State
 from .effects import (
     EffectBlock,
     FeedbackBlock,
-    RateDependentWidth,
-    ReversibleRelaxation,
     effect_from_dict,
 )
 
@@ -179,16 +177,8 @@ class AugmentedModel:
         y0 = self.base.readout(s0)
         for b in self.output_blocks:
             blk = b.with_dt(dt)
-            if hasattr(blk, "apply_chain"):  # needs the Preisach input and initial state
-                y = blk.apply_chain(y, x, s0)
-                continue
-            if isinstance(blk, RateDependentWidth):
-                grid = np.linspace(self.base.u_min, self.base.u_max, 401)
-                anh = np.interp(x, grid, np.asarray(_core.neutral_locus(self.base.table, grid)))
-                y = blk.apply(y, x, anh)
-                continue
-            if isinstance(blk, ReversibleRelaxation):
-                y = blk.apply(y, x)
+            if blk.needs_chain:  # needs the Preisach input (its initial state, the model)
+                y = blk.apply_chain(y, x, s0, self.base)
                 continue
             y0 = blk.reset(y0)
             y = blk.run(y)

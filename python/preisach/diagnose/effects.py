@@ -50,13 +50,16 @@ diagnosis block             rig block                                      diffe
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 from .. import _core
+
+if TYPE_CHECKING:
+    from ..model import State
 
 __all__ = [
     "EFFECT_TYPES",
@@ -146,6 +149,9 @@ class EffectBlock:
     side: ClassVar[str] = "output"
     PARAMS: ClassVar[tuple[tuple[str, str], ...]] = ()
     DOMAIN: ClassVar[dict[str, str]] = {}
+    #: an output block that needs the Preisach input (and some its initial state and model)
+    #: besides the Preisach output: it runs through :meth:`apply_chain`, not :meth:`run`
+    needs_chain: ClassVar[bool] = False
 
     def __init__(self, dt: float, **params: Any) -> None:
         self.dt = _positive(self.kind or "block", "dt", dt)
@@ -192,6 +198,14 @@ class EffectBlock:
     def run(self, x: ArrayLike) -> Array:
         """Process the samples ``x`` from the current state (which is advanced)."""
         return self._run(_as_input(self.kind, x))
+
+    def apply_chain(self, x: ArrayLike, u: ArrayLike, state: State, model: Any) -> Array:
+        """Output (V) of a :attr:`needs_chain` block, from rest.
+
+        ``x``: the Preisach output (V); ``u``: the Preisach input (V); ``state``: its
+        initial state; ``model``: the :class:`~preisach.PreisachModel` producing ``x``.
+        """
+        raise TypeError(f"{self.kind}: a block of the output alone; use run()")
 
     def _run(self, x: Array) -> Array:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -828,9 +842,10 @@ class RateDependentWidth(EffectBlock):
     at the current input) is scaled up by a power of the smoothed input rate ``rho``
     (``|du/dt|`` through a first-order lag ``tau_v``): at higher rates the ascending and
     descending branches lie further apart, as the thesis observed between its 1, 2 and 4 Hz
-    identifications.  The block needs the input and the anhysteretic curve besides ``x``, so
-    diagnosis and :class:`~preisach.diagnose.AugmentedModel` call :meth:`apply`;
-    :meth:`run` is not available.
+    identifications.  The block needs the input and the anhysteretic curve besides ``x``
+    (:attr:`needs_chain`): diagnosis calls :meth:`apply`,
+    :class:`~preisach.diagnose.AugmentedModel` :meth:`apply_chain`; :meth:`run` is not
+    available.
 
     Parameters
     ----------
@@ -847,6 +862,7 @@ class RateDependentWidth(EffectBlock):
 
     kind = "rate_dependence"
     side = "output"
+    needs_chain = True
     PARAMS = (("c", ""), ("exponent", ""), ("rho_ref", "V/s"), ("tau_v", "s"))
     DOMAIN = {"exponent": ">=0", "rho_ref": ">0", "tau_v": ">0"}
 
@@ -880,6 +896,14 @@ class RateDependentWidth(EffectBlock):
             dtype=float,
         )
 
+    def apply_chain(self, x: ArrayLike, u: ArrayLike, state: State, model: Any) -> Array:
+        """:meth:`apply` with ``model``'s anhysteretic curve (its neutral locus) at ``u``."""
+        grid = np.linspace(model.u_min, model.u_max, 401)
+        anh = np.interp(
+            np.asarray(u, dtype=float), grid, np.asarray(_core.neutral_locus(model.table, grid))
+        )
+        return self.apply(x, u, anh)
+
 
 class ReversibleRelaxation(EffectBlock):
     """Rate-dependent hysteresis from a reversible part that relaxes (output side).
@@ -892,8 +916,9 @@ class ReversibleRelaxation(EffectBlock):
     ``k tau du/dt``: the loops widen in proportion to the rate, elliptically, whatever the
     hysteretic state (a delay of the output instead lags by ``tau dy/dt``, in proportion to
     the loop's slope), and a held input settles within a few ``tau``.  The block needs the
-    input besides ``x``, so diagnosis and :class:`~preisach.diagnose.AugmentedModel` call
-    :meth:`apply`; :meth:`run` is not available.
+    input besides ``x`` (:attr:`needs_chain`): diagnosis calls :meth:`apply`,
+    :class:`~preisach.diagnose.AugmentedModel` :meth:`apply_chain`; :meth:`run` is not
+    available.
 
     Parameters
     ----------
@@ -906,6 +931,7 @@ class ReversibleRelaxation(EffectBlock):
 
     kind = "rate_dependence"
     side = "output"
+    needs_chain = True
     PARAMS = (("k", "V/V"), ("tau", "s"))
     DOMAIN = {"k": ">=0", "tau": ">0"}
 
@@ -924,6 +950,10 @@ class ReversibleRelaxation(EffectBlock):
             return xx.copy()
         z = _lag(uu, math.exp(-self.dt / self._params["tau"]), float(uu[0]))
         return np.asarray(xx - self._params["k"] * (uu - z), dtype=float)
+
+    def apply_chain(self, x: ArrayLike, u: ArrayLike, state: State, model: Any) -> Array:
+        """:meth:`apply` (the state and model are not needed)."""
+        return self.apply(x, u)
 
 
 class GainOffset(EffectBlock):

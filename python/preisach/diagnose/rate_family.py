@@ -95,7 +95,8 @@ class RateEverettBlock(EffectBlock):
     (:mod:`preisach.rate_model`; the increment at the first knot is zero).  Together with the
     base model this is the :class:`~preisach.rate_model.RateDependentPreisachModel` with tables
     ``E_0 + E_Dk``.  The block needs the Preisach input and initial state besides ``x``, so
-    :class:`~preisach.diagnose.AugmentedModel` calls :meth:`apply_chain`.
+    :class:`~preisach.diagnose.AugmentedModel` calls :meth:`apply_chain`
+    (:attr:`~preisach.diagnose.effects.EffectBlock.needs_chain`).
 
     Parameters
     ----------
@@ -115,6 +116,7 @@ class RateEverettBlock(EffectBlock):
 
     kind = "rate_dependence"
     side = "output"
+    needs_chain = True
     PARAMS = (
         ("tau", "s"),
         ("knots", "V/s"),
@@ -177,8 +179,11 @@ class RateEverettBlock(EffectBlock):
         y, *_ = _core.simulate_rate(self._model, uu, state, 0.0, self.dt, "clamp")
         return np.asarray(y)
 
-    def apply_chain(self, x: ArrayLike, u: ArrayLike, state: State) -> Array:
-        """Output (V) for the Preisach output ``x``, its input ``u`` (V) and initial ``state``."""
+    def apply_chain(self, x: ArrayLike, u: ArrayLike, state: State, model: Any = None) -> Array:
+        """Output (V) for the Preisach output ``x``, its input ``u`` (V) and initial ``state``.
+
+        ``model`` (the base) is not needed: the increments carry their own tables.
+        """
         return np.asarray(x, dtype=float) + self.increment(u, state)
 
     def describe(self) -> str:
