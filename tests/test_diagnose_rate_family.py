@@ -128,6 +128,39 @@ def test_hold_motion_tells_creep_from_an_after_effect_that_ends():
     assert not ends.creeps and abs(ends.t_stat) < 3
 
 
+def test_holds_refute_a_creep_only_when_they_move_on_less_than_its_fit():
+    """A late motion the holds cannot resolve refutes no creep; one far below the fit's does.
+
+    Twelve 2 s holds of a device with a small logarithmic creep (0.03 % of every move per
+    decade of time, 10 mV noise): from 0.5 s into the holds the output moves on by less
+    than the noise resolves (t < 2).  A Prony creep that moves on about as much is not
+    refuted (seed-18 blind case 006, a logarithmic creep at t = 1.2, was rejected for "the
+    output holds still"); one that moves on 50 times more is.
+    """
+    from preisach.diagnose.context import Context
+    from preisach.diagnose.data import prepare_recordings
+    from preisach.diagnose.rate_family import CREEP_MIN_T, creep_implausible, hold_motion
+
+    base = PreisachModel.builtin("ss15-1hz", 21)
+    gamma = 3e-4
+    levels = np.random.default_rng(5).uniform(-80, 80, 12)
+    u = np.concatenate([np.full(int(2 / DT), v) for v in levels])
+
+    def simulate(x: np.ndarray) -> np.ndarray:
+        return _log_creep(base.simulate(x, base.negative_saturation()).output, gamma)
+
+    recs = session([("steps", u)], simulate, NOISE, 5, DT)
+    ctx = Context(base, prepare_recordings(base, recs, initial_states=["negative_saturation"]))
+    hm = hold_motion(ctx)
+    assert hm.n_holds >= 10 and 0 < hm.t_stat < CREEP_MIN_T  # real, but not resolved
+    taus = [0.02, 0.2, 2.0, 20.0]
+    # a 2 s lag of weight c moves on by c (exp(-1/4) - exp(-1)) ~ 0.41 c from 0.5 s to 2 s;
+    # the log creep by gamma (log10(41) - log10(11)) ~ 0.57 gamma
+    assert creep_implausible(ctx, taus, [0.0, 0.0, 1.4 * gamma, 0.0]) is None
+    why = creep_implausible(ctx, taus, [0.0, 0.0, 70 * gamma, 0.0])
+    assert why is not None and "holds still" in why and "fitted creep" in why
+
+
 def _ramp(a: float, b: float, rate: float) -> np.ndarray:
     return np.linspace(a, b, max(2, int(abs(b - a) / rate / DT)))
 

@@ -724,7 +724,7 @@ class CreepCandidate(Candidate):
     def implausible(self, x: Array, ctx: Context) -> str | None:
         from .rate_family import creep_implausible  # creep must go on for seconds
 
-        return creep_implausible(ctx, self.taus, x[1:])
+        return creep_implausible(ctx, self.taus, x[1:], float(x[0]))
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         c = x[1:]
