@@ -413,7 +413,8 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
     if ok:
         statement = (
             f"{within}: the residual the {n}-level base leaves is its resolution, not missing "
-            "physics"
+            "physics; to predict new inputs closer to the noise, identify on a finer grid of "
+            "reversal levels (more first-order reversal curves)"
         )
     else:
         statement = (
