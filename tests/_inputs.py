@@ -10,6 +10,18 @@ from preisach import Recording
 from preisach.waveforms import legs
 
 
+def shrinking_sweep(sample_time: float) -> NDArray[np.float64]:
+    """A 1 Hz FOD-like identification sweep: 0 V down to -100 V, then 5 s of triangles.
+
+    The amplitude shrinks from 100 V to 10 V, so the reversals cover the Preisach plane.
+    """
+    t = np.arange(int(5 / sample_time)) * sample_time
+    env = 100 * np.clip(1 - t / 5, 0.1, 1)
+    return np.concatenate(
+        [np.linspace(0, -100, 200), env * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t))]
+    )
+
+
 def offset_loops(sample_time: float) -> NDArray[np.float64]:
     """The same 16 V minor loop at five drive offsets (-60 to 60 V), up the range and down.
 

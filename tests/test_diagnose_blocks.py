@@ -86,6 +86,32 @@ def test_structural_mode_equals_the_rigs_block():
         np.testing.assert_allclose(mine.run(x), rig.run(x), rtol=0, atol=1e-9)
 
 
+def test_a_mode_with_a_reaction_is_the_zoh_of_its_transfer_function():
+    # y = x + m (G x - x) - r s^2/D x: the ZOH discretisation of the whole transfer function
+    # (scipy), read at the end of each held interval (direct feedthrough of the held sample)
+    from scipy import signal
+
+    x = np.random.default_rng(2).standard_normal(400).cumsum()
+    for f, z, m, r in ((120.0, 0.1, 0.3, 0.5), (247.0, 0.14, 0.0, 0.5), (40.0, 0.02, 1.2, -0.7)):
+        w = 2 * math.pi * f
+        den = np.array([1.0, 2 * z * w, w * w])
+        num = den + m * (np.array([0.0, 0.0, w * w]) - den) - r * np.array([1.0, 0.0, 0.0])
+        bd, ad, _ = signal.cont2discrete((num, den), DT, method="zoh")
+        ys = signal.lfilter(bd.ravel(), ad, np.r_[x, x[-1]])
+        d = num[0] / den[0]
+        want = ys[1:] - d * np.r_[x[1:], x[-1]] + d * x
+        blk = SecondOrderMode(DT, f_n=f, zeta=z, participation=m, reaction=r)
+        blk.reset(0.0)
+        np.testing.assert_allclose(blk.run(x), want, rtol=0, atol=1e-9)
+        assert blk.reset(1.7) == 1.7 and blk.run(np.full(50, 1.7)) == pytest.approx(1.7)
+    # files written before the reaction existed load with none
+    old = SecondOrderMode(DT, f_n=50.0, zeta=0.1, participation=0.4).to_dict()
+    del old["params"]["reaction"]
+    back = effect_from_dict(old)
+    assert back.params["reaction"] == 0.0
+    assert back.to_dict() == SecondOrderMode(DT, f_n=50.0, zeta=0.1, participation=0.4).to_dict()
+
+
 def test_structural_mode_rings_at_its_frequency():
     m = SecondOrderMode(DT, f_n=40.0, zeta=0.01, participation=1.0)
     m.reset(0.0)

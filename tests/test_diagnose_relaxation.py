@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from _inputs import session
+from _inputs import session, shrinking_sweep
 from preisach import PreisachModel, Recording
 from preisach.diagnose import AugmentedModel, ReversibleRelaxation, diagnose, load_model
 
@@ -28,11 +28,7 @@ CANDIDATES = [
 
 
 def _inputs() -> tuple[np.ndarray, list[tuple[str, np.ndarray]]]:
-    t = np.arange(int(5 / DT)) * DT
-    env = 100 * np.clip(1 - t / 5, 0.1, 1)  # a 1 Hz FOD-like sweep from negative saturation
-    ident = np.concatenate(
-        [np.linspace(0, -100, 200), env * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t))]
-    )
+    ident = shrinking_sweep(DT)
     rng = np.random.default_rng(3)
     exps = []
     for f, amp, T in ((0.5, 90.0, 3.0), (2.0, 70.0, 3.0), (4.0, 100.0, 3.0), (6.0, 80.0, 2.0)):

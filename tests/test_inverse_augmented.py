@@ -85,6 +85,18 @@ def test_mode_seen_fully_is_band_limited_and_stated():
     )
 
 
+def test_mode_in_a_recoiling_frame_is_inverted_exactly():
+    # y = x - r s^2/D x: a numerator with direct feedthrough 1 - r (python's own design)
+    model = AugmentedModel(
+        BASE, [SecondOrderMode(DT, f_n=120.0, zeta=0.08, participation=0.0, reaction=0.4)]
+    )
+    s0 = BASE.negative_saturation()
+    y = from_steady(BASE.y_min, f=1.0)
+    r = invert_augmented(model, y, s0, sample_time=DT)
+    assert r.extra["clamped"] == 0 and "bandwidth_hz" not in r.extra
+    np.testing.assert_allclose(r.output, y, atol=1e-6)
+
+
 def test_not_invertible_blocks_are_refused():
     fb = AugmentedModel(BASE, [OutputFeedback(DT, a=0.1, b=0.0, c=0.0, y_c=0.0, span=10.0)])
     with pytest.raises(ValueError, match="not invertible"):

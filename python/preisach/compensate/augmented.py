@@ -14,8 +14,10 @@ What is inverted, and how (``dt`` the sample time):
     it is solved forwards, for ``f > 1/2`` backwards from the end of the reference (both
     recursions stable), so the interpolation is undone exactly.  The last ``n + 1`` targets
     are held (no preview exists beyond the end).
-``structural_mode`` (``y = x + m (G x - x)``, ``G`` the ZOH-exact second-order mode)
-    ``x = a / c \, y`` with ``c = (1 - m) a + m b``: exact and causal.  Where a root of ``c``
+``structural_mode`` (``y = x + m (G x - x) - r A x``, ``G`` and ``A`` the ZOH-exact
+    second-order mode and its acceleration response; ``y = c / a \, x``)
+    ``x = a / c \, y`` with ``c = (1 - m) a + m b`` (``r = 0``; else ``c`` the block's whole
+    numerator): exact and causal.  Where a root of ``c``
     lies outside the radius ``r_max`` (default 0.95, the ZOH sampling zero near -1 when
     ``m`` is near 1) it is pulled in to ``r_max`` (DC gain kept): the inverse is then exact
     at low frequency and stops compensating near the Nyquist frequency; the band where it

@@ -149,6 +149,8 @@ class EffectBlock:
     side: ClassVar[str] = "output"
     PARAMS: ClassVar[tuple[tuple[str, str], ...]] = ()
     DOMAIN: ClassVar[dict[str, str]] = {}
+    #: values of the parameters that may be left out (added after files were written)
+    OPTIONAL: ClassVar[dict[str, float]] = {}
     #: an output block that needs the Preisach input (and some its initial state and model)
     #: besides the Preisach output: it runs through :meth:`apply_chain`, not :meth:`run`
     needs_chain: ClassVar[bool] = False
@@ -159,6 +161,7 @@ class EffectBlock:
         unknown = sorted(set(params) - set(names))
         if unknown:
             raise TypeError(f"{self.kind}: unknown parameter(s) {unknown}; expected {names}")
+        params = {**self.OPTIONAL, **params}
         missing = [p for p in names if p not in params]
         if missing:
             raise TypeError(f"{self.kind}: missing parameter(s) {missing}")
@@ -314,14 +317,16 @@ def _expm2(A: Array) -> Array:
     )
 
 
-def _mode_zoh(wn: float, zeta: float, dt: float) -> tuple[Array, Array]:
-    """Exact zero-order-hold discretisation of ``wn^2 / (s^2 + 2 zeta wn s + wn^2)``.
+def _mode_zoh(wn: float, zeta: float, dt: float) -> tuple[Array, Array, Array]:
+    """Exact zero-order-hold discretisation of the mode ``G = wn^2 / D``, ``V = 2 zeta wn s / D``.
 
-    With the state ``[p, dp/dt]``: ``Phi = exp(A dt)`` and ``Gamma = A^-1 (Phi - I) B``; the
-    denominator is the characteristic polynomial of ``Phi`` and the numerator follows from
-    the step response at the ends of the first two sample intervals.  Convention of the
-    blocks (``cpp/include/preisach/blocks/linear.hpp``): ``y[k]`` is the output at the end of
-    the interval over which ``x[k]`` is held.
+    ``D = s^2 + 2 zeta wn s + wn^2``.  With the state ``[p, dp/dt]``: ``Phi = exp(A dt)`` and
+    ``Gamma = A^-1 (Phi - I) B``; the common denominator ``a`` is the characteristic
+    polynomial of ``Phi`` and each numerator follows from its step response at the ends of
+    the first two sample intervals (``G``: the first state; ``V``: the second, scaled by
+    ``2 zeta / wn``), so ``1 - G - V`` is the acceleration response ``s^2 / D``.  Convention
+    of the blocks (``cpp/include/preisach/blocks/linear.hpp``): ``y[k]`` is the output at the
+    end of the interval over which ``x[k]`` is held.  Returns ``(b_G, b_V, a)``.
     """
     A = np.array([[0.0, 1.0], [-wn * wn, -2.0 * zeta * wn]])
     B = np.array([0.0, wn * wn])
@@ -330,22 +335,26 @@ def _mode_zoh(wn: float, zeta: float, dt: float) -> tuple[Array, Array]:
     a1, a2 = -float(np.trace(Phi)), float(np.linalg.det(Phi))
     x1 = Gamma
     x2 = Phi @ x1 + Gamma
-    b1 = float(x1[0])
-    b2 = float(x2[0]) - b1 + a1 * b1
-    b = np.array([b1, b2])
     a = np.array([1.0, a1, a2])
+    # from the step responses s0, s1 at the ends of the first two intervals
+    b = np.array([x1[0], x2[0] - x1[0] + a1 * x1[0]])
     b *= a.sum() / b.sum()  # exact unit DC gain after rounding
-    return b, a
+    c = 2.0 * zeta / wn
+    v = c * np.array([x1[1], x2[1] - x1[1] + a1 * x1[1]])  # zero DC gain
+    return b, v, a
 
 
 class SecondOrderMode(_LinearFilter):
     """A lightly damped structural mode after the hysteresis (output side).
 
-    ``y = x + m (G x - x)`` with ``G(s) = wn^2 / (s^2 + 2 zeta wn s + wn^2)``,
-    ``wn = 2 pi f_n``, discretised exactly under a zero-order hold.  ``m`` (participation)
-    is the fraction of the measured output that passes through the mode (1: the sensor sees
-    only the beam's response).  Unit DC gain: quasi-static signals pass unchanged; steps
-    ring at ``f_n``.
+    ``y = x + m (G x - x) - r A x`` with ``G(s) = wn^2 / D(s)``, ``A(s) = s^2 / D(s)``,
+    ``D(s) = s^2 + 2 zeta wn s + wn^2``, ``wn = 2 pi f_n``, discretised exactly under a
+    zero-order hold.  ``m`` (participation) is the fraction of the measured output that
+    passes through the mode (1: the sensor sees only the beam's response); ``r`` (reaction)
+    the part moved by the mode's response to the actuator's acceleration (a mount or frame
+    that recoils: ``r > 0`` lowers the output while it accelerates).  The two are the
+    numerator of any second-order response with unit DC gain.  Unit DC gain: quasi-static
+    signals pass unchanged; steps ring at ``f_n``.
 
     Parameters
     ----------
@@ -355,18 +364,27 @@ class SecondOrderMode(_LinearFilter):
         Damping ratio (1).
     participation : float
         ``m`` (1).
+    reaction : float, optional
+        ``r`` (1); 0 when left out.
 
     """
 
     kind = "structural_mode"
     side = "output"
-    PARAMS = (("f_n", "Hz"), ("zeta", ""), ("participation", ""))
+    PARAMS = (("f_n", "Hz"), ("zeta", ""), ("participation", ""), ("reaction", ""))
     DOMAIN = {"f_n": ">0", "zeta": ">0"}
+    OPTIONAL = {"reaction": 0.0}
 
     def _design(self) -> tuple[Array, Array, float]:
         p = self._params
-        b, a = _mode_zoh(2 * math.pi * p["f_n"], p["zeta"], self.dt)
-        return b, a, p["participation"]
+        m, r = p["participation"], p["reaction"]
+        b, v, a = _mode_zoh(2 * math.pi * p["f_n"], p["zeta"], self.dt)
+        if r == 0.0:
+            return b, a, m
+        # y = x + (m + r) (G x - x) + r V x  (A = 1 - G - V), one filter with mix 1
+        num = (1.0 - m - r) * a
+        num[:2] += (m + r) * b + r * v
+        return num, a, 1.0
 
 
 class PronyCreep(EffectBlock):

@@ -673,7 +673,8 @@ def physical_checks(case: Case, report: DiagnosisReport) -> dict[str, dict[str, 
     (:attr:`Case.device`) and the diagnosed model restricted to the verdict's blocks:
 
     * ``delay``: ``lag`` (s), the fitted delay vs the truth's low-frequency lag;
-    * ``structural_resonance``: ``f_n`` (Hz), ``zeta`` (1) and ``participation`` (1);
+    * ``structural_resonance``: ``f_n`` (Hz), ``zeta`` (1) and ``participation`` (1): the
+      share of a step that arrives through the ring, ``m + r`` for a fit with a reaction;
     * ``creep``: ``creep_50ms_1s`` (V), the output's movement from 50 ms to 1 s after a
       40 ms step from ``u_min`` to 60 % of the input span;
     * ``rate_dependence``: ``widening`` (V), the major loop's width at mid input at 1 Hz
@@ -731,7 +732,9 @@ def physical_checks(case: Case, report: DiagnosisReport) -> dict[str, dict[str, 
             f_n, zeta, part = truth.params["f_n"], truth.params["zeta"], strength
         put("f_n", p["f_n"], f_n)
         put("zeta", p["zeta"], zeta)
-        put("participation", p["participation"], part)
+        # the share of a step that arrives through the ring (m + r: the reaction form's m alone
+        # is set by the numerator's small s-term and trades off with r when lightly damped)
+        put("participation", p["participation"] + p.get("reaction", 0.0), part)
     elif kind == "creep":
         put("creep_50ms_1s", _creep_movement(fitted, dev, dt), _creep_movement(true, dev, dt))
     elif kind == "rate_dependence":
