@@ -51,7 +51,7 @@ def test_output_curve_beyond_the_fine_classical_model(stiffening):
     than the base's resolution.
     """
     ctx, sigma = _context(stiffening)
-    chk = resolution_check(ctx, sigma, noise_ratio=2.0)
+    chk, _ = resolution_check(ctx, sigma, noise_ratio=2.0)
     curve = chk["output_curve"]
     assert curve is not None, chk["statement"]  # the fine classical model is within the bound
     if stiffening:

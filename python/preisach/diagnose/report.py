@@ -49,7 +49,9 @@ class EffectReport:
     heldout_rmse_before, heldout_rmse_after : float
         Held-out RMSE (V) of the chain without and with this effect.  For a sensor drift
         named from its wander within the holds (no curve is subtracted): the held-out RMS of
-        the hold stretches predicted as a still output and from their neighbours.
+        the hold stretches predicted as a still output and from their neighbours; for one
+        named from the fine classical model of the resolution check: that model's held-out
+        RMSE on interleaved stretches without and with the drift.
     holds : dict or None
         For an effect that acts in time (creep, sensor drift) on recordings that hold the
         input: its held-out evidence within the holds, each hold's mean removed

@@ -473,6 +473,8 @@ class ClassicalCheck:
     stretch: float  # length (s) of the interleaved held-out stretches
     seconds: float
     sse_blocks: Array  # held-out SSE per time block of the recordings (as in Score)
+    #: with ``drift``: each recording's fitted drift curve (V), the mean of the two folds' fits
+    drift_curves: list[Array] | None = None
 
     def as_dict(self) -> dict[str, float | int]:
         """JSON-ready fields."""
@@ -521,7 +523,8 @@ def classical_check(
 
     ``drift``: every recording also gets the sensor drift of the selection (the P-spline in
     time of :meth:`Context.drift_basis` with its curvature penalty), to measure what a drift
-    adds to a classical model whose initial states are free.
+    adds to a classical model whose initial states are free; the fitted curves are returned
+    (:attr:`ClassicalCheck.drift_curves`).
     """
     t0 = time.perf_counter()
     extra: list[Array] | None = None
@@ -541,14 +544,25 @@ def classical_check(
     cnt_b = np.zeros(fs.nb)
     # the drift columns follow each recording's state columns
     add = [(int(fs.cols[i][0]) + fs.n_state[i], pen) for i, pen in enumerate(pens)]
+    curves = None if extra is None else [np.zeros(r.n) for r in ctx.recs]
     for k in (0, 1):
         w = fs.solve(k, smoothing, add=add)
         sse, cnt = fs.heldout_sse(k, w)
         sse_b += sse
         cnt_b += cnt
+        if extra is not None and curves is not None:
+            for i, (c0, _) in enumerate(add):
+                curves[i] += 0.5 * (extra[i] @ w[c0 : c0 + extra[i].shape[1]])
     rmse = math.sqrt(float(sse_b.sum()) / max(float(cnt_b.sum()), 1.0))
     ratio = rmse / sigma if sigma > 0 else float("inf")
     seconds = time.perf_counter() - t0
     return ClassicalCheck(
-        ratio, rmse, int(levels), float(smoothing), float(stretch), seconds, sse_b[cnt_b > 0]
+        ratio,
+        rmse,
+        int(levels),
+        float(smoothing),
+        float(stretch),
+        seconds,
+        sse_b[cnt_b > 0],
+        curves,
     )

@@ -358,22 +358,26 @@ def choose_grid(
 
 def _drift_beyond_classical(
     ctx: Context, sigma: float, seed: int, without: ClassicalCheck | None = None
-) -> tuple[float, float]:
+) -> tuple[float, float, list[np.ndarray]]:
     """Measure what a sensor drift adds to the fine classical model of the resolution check.
 
     Returns the reduction of the interleaved held-out mean-square error (in noise
-    variances) when every recording gets the drift spline, and the one-sided sign-flip
-    p-value of that reduction over the recordings' time blocks.  ``without``: the check
-    without the drift when the caller has it.
+    variances) when every recording gets the drift spline, the one-sided sign-flip
+    p-value of that reduction over the recordings' time blocks, and the fitted drift
+    curves (V, per recording).  ``without``: the check without the drift when the caller
+    has it.
     """
     if without is None:
         without = classical_check(ctx, sigma)
     with_drift = classical_check(ctx, sigma, drift=True)
     gain = (without.rmse**2 - with_drift.rmse**2) / sigma**2 if sigma > 0 else float("inf")
-    return gain, sign_flip_p(without.sse_blocks - with_drift.sse_blocks, seed=seed)
+    p = sign_flip_p(without.sse_blocks - with_drift.sse_blocks, seed=seed)
+    return gain, p, with_drift.drift_curves or []
 
 
-def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str, Any]:
+def resolution_check(
+    ctx: Context, sigma: float, noise_ratio: float
+) -> tuple[dict[str, Any], list[np.ndarray] | None]:
     """Decide whether a residual no candidate explains is the base's resolution.
 
     The second half of the noise test.
@@ -396,11 +400,15 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
     slow change in time - the selection's drift spline added to every recording must gain
     less than :data:`DRIFT_BEYOND_CLASSICAL` noise variances or fail the sign-flip test at
     0.01 (the bar the drift's name must pass, key ``drift``).  Either one makes the
-    residual more than the resolution.  Measured on the seen blind cases (seeds 10-13,
-    models from ``preisach identify``): the twelve nulls gain at most 0.003 noise variances
-    from the drift; a drift plus non-congruence case (seed 13, 7.58 x the noise) 0.10.
+    residual more than the resolution; a drift found so is named when input holds show
+    that the residual does not follow the moves into them (``core._classical_drift``).
+    Measured on the seen blind cases (seeds 10-13, models from ``preisach identify``): the
+    twelve nulls gain at most 0.003 noise variances from the drift; a drift plus
+    non-congruence case (seed 13, 7.58 x the noise) 0.10.
 
-    Returns the JSON-ready check with ``consistent`` and a one-line ``statement``.
+    Returns the JSON-ready check with ``consistent`` and a one-line ``statement``, and the
+    drift curves (V, per recording) of the fine model when the drift made the residual more
+    than the resolution (else None).
     """
     chk = classical_check(ctx, sigma)
     ok = bool(chk.ratio <= noise_ratio)
@@ -438,11 +446,13 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
                 "output levels, read by a calibrated sensor, separates them"
             )
     drift = None
+    curves = None
     if ok:  # nor does any classical model follow a slow change in time (a drift or creep)
-        gain, p = _drift_beyond_classical(ctx, sigma, seed=0, without=chk)
+        gain, p, fitted = _drift_beyond_classical(ctx, sigma, seed=0, without=chk)
         drift = {"gain_noise_variances": gain, "p": p}
         if gain >= DRIFT_BEYOND_CLASSICAL and p < 0.01:
             ok = False
+            curves = fitted
             statement = (
                 f"{within}, but a slow drift in time adds {gain:.2g} x the noise variance to "
                 f"it (p = {p:.2g}; bar "
@@ -452,13 +462,14 @@ def resolution_check(ctx: Context, sigma: float, noise_ratio: float) -> dict[str
                 "start and the end of a run separates a drift (it moves) from creep (it "
                 "repeats)"
             )
-    return {
+    report = {
         **chk.as_dict(),
         "consistent": ok,
         "statement": statement,
         "output_curve": curve,
         "drift": drift,
     }
+    return report, curves
 
 
 def run_selection(
@@ -506,7 +517,7 @@ def run_selection(
         baseline = given
     kept: list[str] = []
     drift = False
-    drift_check: tuple[float, float] | None = None
+    drift_check: tuple[float, float, list[np.ndarray]] | None = None
     pieces = hold_pieces(ctx)
     steps: list[StepResult] = []
     remaining = {c.key: c for c in candidates}
@@ -645,7 +656,7 @@ def run_selection(
             ):
                 if drift_check is None:
                     drift_check = _drift_beyond_classical(ctx, sigma, seed=len(steps))
-                gain_c, p_c = drift_check
+                gain_c, p_c, _ = drift_check
                 if gain_c < DRIFT_BEYOND_CLASSICAL or p_c >= alpha:
                     ok[name] = False
                     why[name] = (
