@@ -14,7 +14,7 @@ from scipy import linalg, optimize
 
 from .. import _core
 from .context import Chain, Context, Fold
-from .data import Rec
+from .data import Mask, Rec
 
 __all__ = [
     "ClassicalCheck",
@@ -243,6 +243,30 @@ def running_range_basis(
     return B, np.minimum(at, u.size - 1)
 
 
+def unresolved_start(u: Array, dt: float, stretch: float, knots: int) -> Mask:
+    """Mark the samples an unknown initial state decides where no other stretch sees them.
+
+    While the running range ``s = M - m`` grows, the input reaches relays the recording has
+    not visited, and the output depends on their initial state.  The state basis
+    (:func:`running_range_basis`) follows that dependence with knots one ``1 / knots`` of the
+    final range apart; where ``s`` grows by more than one such interval within one
+    ``stretch``-second stretch (a start-up step from rest, a first fast excursion), the
+    output inside the move depends on the initial state's detail between the knots, and only
+    that stretch's own samples show it: the interleaved folds cannot predict them from their
+    neighbours, at any resolution.  Those stretches are marked (True).
+    """
+    n = u.size
+    s = np.maximum.accumulate(u) - np.minimum.accumulate(u)
+    top = float(s[-1])
+    L = max(1, int(round(stretch / dt)))
+    if top <= 0 or n <= 1:
+        return np.zeros(n, dtype=bool)
+    ends = np.minimum(np.arange(L - 1, n + L - 1, L), n - 1)  # last sample of each stretch
+    grow = np.diff(np.r_[0.0, s[ends]])
+    bad = grow > top / knots
+    return np.asarray(bad[np.arange(n) // L], dtype=bool)
+
+
 def unvisited_bound(model: Any, u: Array, at: NDArray[np.int64]) -> Array:
     """Largest output difference (V) two initial states can make at the samples ``at``.
 
@@ -408,7 +432,10 @@ def fine_system(
             fold = np.where(r.usable, 2, -1)
         else:
             L = max(1, int(round(stretch / r.dt)))
-            fold = np.where(r.usable, (np.arange(r.n) // L) % 2, -1)
+            use = r.usable
+            if r.history is not None:  # what the unknown initial state alone decides
+                use = use & ~unresolved_start(r.u, r.dt, stretch, state_knots)
+            fold = np.where(use, (np.arange(r.n) // L) % 2, -1)
         s0 = ctx.state(i, ctx.given)
         g, b, _, _, _, _ = _core.normal_equations(
             lv, r.u, r.y, s0, fold.astype(np.int32), 3, "clamp"
