@@ -14,7 +14,7 @@ import pytest
 from _inputs import offset_loops
 from preisach import PreisachModel, Recording, _core
 from preisach.diagnose.context import Context
-from preisach.diagnose.core import _classical_drift
+from preisach.diagnose.core import _classical_change
 from preisach.diagnose.data import prepare_recordings
 from preisach.diagnose.holds import HoldMotion
 from preisach.diagnose.scoring import fine_system, unresolved_start, unvisited_bound
@@ -120,15 +120,16 @@ def test_the_unvisited_relays_bound_is_the_major_loops_width():
     assert b[0] > b[1] > b[2] == pytest.approx(0.0, abs=1e-12) and b[3] == b[2]
 
 
-def test_a_drift_only_the_fine_classical_model_shows_is_named():
-    """The fine model's drift curves follow the sensor; named a drift only where creep is not.
+def test_a_change_only_the_fine_classical_model_shows_is_named_by_the_holds():
+    """The fine model's drift curves follow the sensor; the holds say drift or creep.
 
-    When nothing was kept and only the fine classical model shows the drift (blind seed-20
-    case 001: its gain sat below the base's resolution residual in the selection), the
-    report names a sensor drift from the check - when input holds show that the residual
-    does not follow the moves into them (creep would).  Fails when the check's curves stop
-    following the sensor's offset (each recording's mean aside), when the named drift's size
-    is off, or when it is named without holds or against holds that follow the moves.
+    When nothing was kept and only the fine classical model shows a change in time (blind
+    seed-20 case 001, a warm-up drift, and seed-21 case 024, a creep: their gain sat below
+    the base's resolution residual in the selection), the report names it from the check:
+    a sensor drift when input holds show that the residual does not follow the moves into
+    them, creep when it does.  Fails when the check's curves stop following the sensor's
+    offset (each recording's mean aside), when the named size is off, when the holds' verdict
+    is ignored, or when something is named without holds.
     """
     swing = 3e-3
     ctx = _context(swing)
@@ -141,15 +142,18 @@ def test_a_drift_only_the_fine_classical_model_shows_is_named():
         assert np.corrcoef(fit, true)[0, 1] > 0.9
         assert np.ptp(fit) == pytest.approx(np.ptp(true), rel=0.3)
     still = HoldMotion(n_pieces=6, seconds=4.0, ratio=1.0, follows_t=-0.8)
-    eff = _classical_drift(ctx, chk, curves, still, NOISE)
+    eff = _classical_change(ctx, chk, curves, still, NOISE)
     assert eff is not None and eff.name == "sensor_drift"
     size = max(np.ptp(_offset(swing, ctx.recs[i].t - ctx.recs[i].t[0], i)) for i in ctx.diag)
     assert eff.parameters["peak_to_peak"]["value"] == pytest.approx(size, rel=0.3)
     assert eff.heldout_rmse_after < eff.heldout_rmse_before
     assert "free initial states" in eff.evidence
     creeping = HoldMotion(n_pieces=6, seconds=4.0, ratio=1.5, follows_t=8.0)
-    assert _classical_drift(ctx, chk, curves, creeping, NOISE) is None
-    assert _classical_drift(ctx, chk, curves, None, NOISE) is None
+    crept = _classical_change(ctx, chk, curves, creeping, NOISE)
+    assert crept is not None and crept.name == "creep" and "as creep does" in crept.evidence
+    assert _classical_change(ctx, chk, curves, None, NOISE) is None
+    few = HoldMotion(n_pieces=2, seconds=1.0, ratio=1.0, follows_t=-0.8)
+    assert _classical_change(ctx, chk, curves, few, NOISE) is None
 
 
 def test_a_start_up_step_from_an_unknown_state_is_not_scored_by_the_fine_check():

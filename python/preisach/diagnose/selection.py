@@ -400,8 +400,9 @@ def resolution_check(
     slow change in time - the selection's drift spline added to every recording must gain
     less than :data:`DRIFT_BEYOND_CLASSICAL` noise variances or fail the sign-flip test at
     0.01 (the bar the drift's name must pass, key ``drift``).  Either one makes the
-    residual more than the resolution; a drift found so is named when input holds show
-    that the residual does not follow the moves into them (``core._classical_drift``).
+    residual more than the resolution; a drift found so is named by input holds: creep
+    when the residual follows the moves into them, a sensor drift when it does not
+    (``core._classical_change``).
     Measured on the seen blind cases (seeds 10-13, models from ``preisach identify``): the
     twelve nulls gain at most 0.003 noise variances from the drift; a drift plus
     non-congruence case (seed 13, 7.58 x the noise) 0.10.
