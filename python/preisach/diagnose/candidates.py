@@ -45,7 +45,7 @@ from .effects import (
     SensorDrift,
     SplineFeedback,
 )
-from .linear_block import Classification, classify_problem
+from .linear_block import Classification, classify_problem, problem_key
 from .locate import display_unit
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -622,20 +622,28 @@ class ModeCandidate(LinearDynamicsForm):
         grid = np.geomspace(2.0, fmax, max(2, int(np.log(fmax / 2.0) / np.log(1.06)) + 1))
         if prob is None:  # pragma: no cover - only called inside a fit
             return [np.array([grid[len(grid) // 2], 0.05, 0.1])]
-        found = []
-        for z in (0.015, 0.06, 0.25):
-            for f in grid:
-                blk = SecondOrderMode(ctx.dt_min, f_n=f, zeta=z, participation=1.0)
+        # the scan sees only the training residual before the mode: every mode form (the
+        # participation alone, with a reaction) shares it per problem (problem_key)
+        cache: dict[Any, list[tuple[float, float, float, float]]]
+        cache = ctx.__dict__.setdefault("_mode_scans", {})
+        key = (problem_key(prob), self.order)
+        found = cache.get(key)
+        if found is None:
+            found = []
+            for z in (0.015, 0.06, 0.25):
+                for f in grid:
+                    blk = SecondOrderMode(ctx.dt_min, f_n=f, zeta=z, participation=1.0)
 
-                def make(i: int, up: Array, blk: SecondOrderMode = blk) -> Array:
-                    b = blk if ctx.recs[i].dt == blk.dt else blk.with_dt(ctx.recs[i].dt)
-                    b.reset(float(up[0]))
-                    return b.run(up) - up
+                    def make(i: int, up: Array, blk: SecondOrderMode = blk) -> Array:
+                        b = blk if ctx.recs[i].dt == blk.dt else blk.with_dt(ctx.recs[i].dt)
+                        b.reset(float(up[0]))
+                        return b.run(up) - up
 
-                c, gain = prob.scan_linear(make)
-                if c > 0:
-                    found.append((gain, f, z, min(c, 5.0)))
-        found.sort(reverse=True)
+                    c, gain = prob.scan_linear(make)
+                    if c > 0:
+                        found.append((gain, f, z, min(c, 5.0)))
+            found.sort(reverse=True)
+            cache[key] = found
         extra = []
         if cls is not None and cls.kind == "mode" and found:  # the general block's pole pair
             extra = [np.array([cls.f_n, max(cls.zeta, 0.004), found[0][3]])]

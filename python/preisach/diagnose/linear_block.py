@@ -529,6 +529,20 @@ def classify(fit: LinearBlockFit) -> Classification:
     )
 
 
+def problem_key(prob: Problem) -> tuple[Any, ...]:
+    """Return what a candidate problem's training data are: samples, fixed chain and drift.
+
+    Two problems with the same key see the same training residuals before their candidate,
+    so work on those alone (the general block's fit, a form's start scan) can be shared.
+    """
+    return (
+        tuple(np.packbits(m).tobytes() for m in prob.train),
+        tuple((e.cand.key, np.asarray(e.x).tobytes()) for e in prob.fixed.effects),
+        prob.drift,
+        id(prob.fixed.base),
+    )
+
+
 def classify_problem(ctx: Context, prob: Problem) -> Classification:
     """Fit the general block on a candidate problem's training samples and classify it.
 
@@ -537,12 +551,7 @@ def classify_problem(ctx: Context, prob: Problem) -> Classification:
     ``preisach._core.regressor_rows``, as for every candidate; see :func:`fit_linear_block`).
     Cached on ``ctx`` per training set and fixed chain, so the narrow forms share one fit.
     """
-    key = (
-        tuple(np.packbits(m).tobytes() for m in prob.train),
-        tuple((e.cand.key, np.asarray(e.x).tobytes()) for e in prob.fixed.effects),
-        prob.drift,
-        id(prob.fixed.base),
-    )
+    key = problem_key(prob)
     cache: dict[Any, Classification] = ctx.__dict__.setdefault("_linear_block_classes", {})
     hit = cache.get(key)
     if hit is not None:
