@@ -101,3 +101,66 @@ def test_creep_on_the_same_device_stays_unexplained(model_and_device):
     nt = rep.noise_test
     assert nt["classical"] is not None and nt["classical"]["ratio"] > nt["threshold"], nt
     assert rep.verdict == "unexplained" and not nt["consistent"]
+    # a scale of the diagnosis recordings takes a part of the relaxation the identification
+    # lacks (15-20 % of the held-out error), not the whole: no calibration is named
+    first = {c["name"]: c["decision"] for c in rep.candidates if c["step"] == 1}
+    assert "lack more than a calibration" in first["gain_offset"], first
+
+
+#: the diagnosis recordings' scale and zero after a recalibration of the sensor
+RECAL = (1.02, 0.0)
+
+
+def _recalibrated(recs: list[Recording], gain: float, offset: float) -> list[Recording]:
+    return [
+        Recording.from_arrays(t=r.t, u=r.u, y=gain * r.y + offset, metadata=r.metadata)
+        for r in recs
+    ]
+
+
+def test_a_sensor_recalibrated_after_the_identification_is_named(model_and_device):
+    """A scale that differs between identification and diagnosis is the sensor's.
+
+    The diagnosis recordings read 2 % high (the sensor recalibrated after the sweep):
+    ``gain_offset`` is named with that scale.  (Not a zero shift: these recordings start
+    from unknown initial states, and a shift of a few tens of mV is also an initial state.)
+    Fails when the block also scales the identification recordings (a scale common to both
+    is the refitted weights' own) or when the calibration's tests against the fine classical
+    model refuse a real recalibration.
+    """
+    model, dev = model_and_device
+    recs = _recalibrated(_session(dev, _inputs(), 0.0, seed=7), *RECAL)
+    rep = diagnose(model, recs, candidates=["gain_offset"], progress=False)
+    assert rep.verdict == "gain_offset", rep.summary()
+    gain = rep.effects[0].parameters["gain"]
+    assert abs(gain["value"] - 1.02) < max(3 * gain["std"], 2e-3), gain
+
+
+def test_a_calibration_no_classical_model_needs_is_not_named(model_and_device, monkeypatch):
+    """The calibration forms must add to the fine classical model what a static curve must.
+
+    The scale common to the identification and the diagnosis recordings adds nothing beyond
+    the fine model (the weights scale with it); a scale of the diagnosis recordings alone
+    adds many noise variances.  With the bar raised out of reach the recalibration of the
+    test above is refused by it, and says why.  Fails when the check gives a common scale
+    a gain, or the selection no longer asks it.
+    """
+    import importlib
+
+    from preisach.diagnose.congruency import output_curve_check
+    from preisach.diagnose.context import Context
+    from preisach.diagnose.data import prepare_recordings
+
+    congruency = importlib.import_module("preisach.diagnose.congruency")
+    model, dev = model_and_device
+    clean = _session(dev, _inputs(), 0.0, seed=7)
+    ident = model.identification
+    for recs, beyond in ((clean, False), (_recalibrated(clean, *RECAL), True)):
+        ctx = Context(model, prepare_recordings(model, recs, identification=ident), refit=True)
+        cc = output_curve_check(ctx, NOISE, powers=(1,), identification=False)
+        assert (cc.gain > 1.0 and cc.p < 0.01) if beyond else cc.gain < 0.02, cc
+    monkeypatch.setattr(congruency, "CURVE_BEYOND_CLASSICAL", 1e9)
+    rep = diagnose(model, _recalibrated(clean, *RECAL), candidates=["gain_offset"])
+    assert rep.verdict != "gain_offset"
+    first = {c["name"]: c["decision"] for c in rep.candidates if c["step"] == 1}
+    assert "explains what the calibration does" in first["gain_offset"], first

@@ -801,6 +801,17 @@ class GainOffsetCandidate(Candidate):
     def params(self, x: Array) -> dict[str, Any]:
         return {"gain": float(x[0]), "offset": float(x[1])}
 
+    def apply(self, x: Array, signal_in: Array, dt: float, stage: Stage, ctx: Context) -> Array:
+        """Scale and shift the diagnosis recordings; the identification recordings set the scale.
+
+        A scale or zero common to the identification and the diagnosis recordings is the
+        Preisach weights' own (a refit scales them and moves the output offset): only a
+        calibration that differs between the two is the sensor's.
+        """
+        if ctx.recs[stage.i].ident:
+            return signal_in
+        return super().apply(x, signal_in, dt, stage, ctx)
+
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         ku, unit = display_unit(ctx.output_unit)
         return (

@@ -71,6 +71,15 @@ class OutputCurveCheck:
     ratio_curve: float  # held-out RMS / noise, with the static output curve
     powers: tuple[int, ...]
     seconds: float
+    #: the curve's coefficient (V) of each power of the output level (the mean of the two
+    #: folds' fits); the output level is the given model's simulation scaled to [-1, 1]
+    coef: tuple[float, ...] = ()
+    #: the fitted curve (V) per recording (zeros where it does not act)
+    curves: list[Array] | None = None
+
+    def passes(self, alpha: float = 0.01) -> bool:
+        """Whether the curve adds at least :data:`CURVE_BEYOND_CLASSICAL` at level ``alpha``."""
+        return bool(self.gain >= CURVE_BEYOND_CLASSICAL and self.p < alpha)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready fields."""
@@ -80,6 +89,7 @@ class OutputCurveCheck:
             "ratio_classical": self.ratio_classical,
             "ratio_curve": self.ratio_curve,
             "powers": list(self.powers),
+            "coefficients": list(self.coef),
             "seconds": self.seconds,
         }
 
@@ -94,6 +104,7 @@ def output_curve_check(
     stretch: float = CHECK_STRETCH,
     state_knots: int = CHECK_STATE_KNOTS,
     seed: int = 0,
+    identification: bool = True,
 ) -> OutputCurveCheck:
     """Measure what a static curve of the output adds to the fine classical model.
 
@@ -101,6 +112,10 @@ def output_curve_check(
     exactly as in :func:`~preisach.diagnose.scoring.classical_check`) to the identification
     recordings and every other ``stretch``-second stretch of the diagnosis recordings, and
     predict the stretches in between (two folds).  ``sigma`` is the noise (V).
+    ``identification``: whether the curve acts on the identification recordings too; without,
+    ``powers=(1,)`` measures a scale of the diagnosis recordings that differs from the
+    identification's (a sensor calibration changed between them; a scale common to both is
+    the weights' own).
     """
     t0 = time.perf_counter()
     pw = tuple(int(k) for k in powers)
@@ -108,16 +123,19 @@ def output_curve_check(
     curve = []
     for i in range(len(ctx.recs)):
         d = np.clip((np.nan_to_num(sims[i]) - ctx.y_centre) / ctx.y_half_span, -1.5, 1.5)
-        curve.append(np.column_stack([d**k for k in pw]))
+        on = identification or not ctx.recs[i].ident
+        curve.append(np.column_stack([d**k if on else np.zeros_like(d) for k in pw]))
     fs = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots, shared=curve)
     P = fs.A.shape[1]
     sse = np.zeros((2, fs.nb))
     cnt = np.zeros(fs.nb)
+    coef = np.zeros(len(pw))
     for k in (0, 1):
         for s, keep in enumerate((np.arange(P - len(pw)), np.arange(P))):
             w = fs.solve(k, smoothing, keep=keep)
             sse_k, cnt_k = fs.heldout_sse(k, w)
             sse[s] += sse_k
+        coef += 0.5 * w[P - len(pw) :]
         cnt += cnt_k
     tot = max(float(cnt.sum()), 1.0)
     mse0, mse1 = float(sse[0].sum()) / tot, float(sse[1].sum()) / tot
@@ -130,4 +148,6 @@ def output_curve_check(
         math.sqrt(mse1) / sigma if pos else float("inf"),
         pw,
         time.perf_counter() - t0,
+        tuple(float(c) for c in coef),
+        [c @ coef for c in curve],
     )

@@ -19,6 +19,7 @@ from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
 from .candidates import Candidate, DriftCandidate
+from .congruency import CURVE_BEYOND_CLASSICAL
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
@@ -72,6 +73,9 @@ SEPARATING: dict[frozenset[str], str] = {
     "the end of a run (a drift moves it, non-congruence does not)",
     frozenset({"delay", "creep"}): "a step-and-hold (a delay is over within milliseconds, creep "
     "goes on for seconds)",
+    frozenset({"non_congruence", "sensor_nonlinearity"}): "the same minor loop at several "
+    "output levels read by a second, calibrated sensor (a sensor curve is the reading's; "
+    "non-congruence changes the actuator's own loops)",
 }
 
 
@@ -351,6 +355,7 @@ def diagnose(
         max_effects=int(max_effects),
         progress=progress,
         base=gc,
+        noise_ratio=noise_ratio,
     )
     # 5. the kept effects refitted on all usable samples
     final = _final_fits(ctx, cands, sel, do_refit)
@@ -724,6 +729,72 @@ def _classical_change(
     )
 
 
+def _classical_curve(
+    ctx: Context, check: dict[str, Any], curves: list[np.ndarray], sigma: float
+) -> EffectReport:
+    """Name loop heights that change with the output level, found beyond the fine model.
+
+    When nothing was kept, the fine classical model of the resolution check predicts
+    interleaved stretches within the noise bound, and a static curve of the output adds
+    clearly to it (:func:`~preisach.diagnose.congruency.output_curve_check`, the bar
+    :data:`~preisach.diagnose.congruency.CURVE_BEYOND_CLASSICAL`): minor loops change their
+    height with the output level, which no classical (congruent) model does.  The
+    candidates' fits could not show it against the base's resolution (blind seed-21 case
+    006, a non-congruent device: 0.14 noise variances beyond the fine model, p = 0.0002,
+    while the refitted base left 2.9 x the noise).  It is named ``non_congruence``; a sensor
+    reading through a nonlinear curve gives the same readings and is named with it.  No
+    block is added to the model: ``curves`` (V, per recording) are the fine model's output
+    curve, a measure of the size.
+    """
+    oc = check["output_curve"]
+    gain, p = float(oc["gain_noise_variances"]), float(oc["p"])
+    before = float(check["heldout_rmse"])
+    after = math.sqrt(max(before**2 - gain * sigma**2, 0.0))
+
+    def height(d: float) -> float:  # a minor loop's height at output level d, relative
+        slope = sum(k * float(c) * d ** (k - 1) for k, c in zip(oc["powers"], oc["coefficients"]))
+        return 1.0 + float(slope) / max(ctx.y_half_span, 1e-300)
+
+    lo, hi = height(-0.8), height(0.8)
+    diag = list(ctx.diag)
+    p2p = {ctx.recs[i].name: float(np.ptp(curves[i][ctx.recs[i].usable])) for i in diag}
+    return EffectReport(
+        name="non_congruence",
+        statement=(
+            "minor loops change their height with the output level: relative to the middle "
+            f"of the output range, {100 * (lo - 1):+.2g} % near the bottom and "
+            f"{100 * (hi - 1):+.2g} % near the top, which no classical (congruent) Preisach "
+            "model does - the actuator's loops scale with its strain (non-congruence, e.g. a "
+            "product model), or the sensor reads through a nonlinear curve (sensor "
+            "nonlinearity), which these recordings cannot tell apart; to separate them: "
+            f"{separating_experiment('non_congruence', 'sensor_nonlinearity')}"
+        ),
+        evidence=(
+            f"a classical Preisach model on a {check['levels']}-level grid with free initial "
+            f"states predicts interleaved {1e3 * check['stretch_s']:.0f} ms held-out stretches "
+            f"at {check['ratio']:.3g} x the noise; a static curve of the output (powers "
+            f"{', '.join(str(k) for k in oc['powers'])} of its level) adds {gain:.2g} x the "
+            f"noise variance to it (p = {p:.2g}; bar {CURVE_BEYOND_CLASSICAL:g}), which no "
+            "classical model makes; too small against the model's resolution for a fit on "
+            "other time blocks to show: identify on a finer grid of reversal levels so that "
+            "it stands out"
+        ),
+        where=where_of([ctx.recs[i] for i in diag], [curves[i] for i in diag], ctx.u_span),
+        parameters={
+            "height_bottom": {"value": lo, "std": float("nan"), "unit": ""},
+            "height_top": {"value": hi, "std": float("nan"), "unit": ""},
+            "peak_to_peak": {
+                "value": max(p2p.values()),
+                "std": float("nan"),
+                "unit": ctx.output_unit or "V",
+                "per_recording": p2p,
+            },
+        },
+        heldout_rmse_before=before,
+        heldout_rmse_after=after,
+    )
+
+
 def _unknown_start_note(
     ctx: Context, steps: Sequence[StepResult], names: Sequence[str]
 ) -> str | None:
@@ -821,9 +892,9 @@ def _report(
     consistent = bool(ratio <= noise_ratio)
     # nothing kept and above the bound: is the residual the base's resolution? (nulls owner)
     check = None
-    drift_curves = None
+    curves = None  # of the change the resolution check found beyond the fine model
     if do_refit and not (names or consistent):
-        check, drift_curves = resolution_check(ctx, sigma_hat, noise_ratio)
+        check, curves = resolution_check(ctx, sigma_hat, noise_ratio)
         consistent = bool(check["consistent"])
     # nothing kept: the holds must be still too (no classical model moves while the input
     # holds, whatever its resolution; motion there is evidence however small the RMSE)
@@ -836,10 +907,13 @@ def _report(
             drift = _wander_drift(ctx, sel, motion, sigma_hat, alpha)
             if drift is not None:
                 effects = [drift]
-        if check is not None and drift_curves is not None and effects is final.effects:
-            change = _classical_change(ctx, check, drift_curves, motion, sigma_hat)
-            if change is not None:
-                effects = [change]
+        if check is not None and curves is not None and effects is final.effects:
+            if check["drift"] is None:  # the output curve made it more than the resolution
+                effects = [_classical_curve(ctx, check, curves, sigma_hat)]
+            else:
+                change = _classical_change(ctx, check, curves, motion, sigma_hat)
+                if change is not None:
+                    effects = [change]
     noise_test: dict[str, Any] = {
         "ratio": ratio,
         "threshold": float(noise_ratio),
