@@ -33,7 +33,7 @@ def main() -> None:
         c = output_curve_check(ctx, sigma)
         print(
             f"{case}: noise {1e3 * sigma:.3g} mV, fine classical {c.ratio_classical:.3f} x, "
-            f"with the output curve {c.ratio_curve:.3f} x, gain {c.gain:.3f} noise variances, "
+            f"with the output curve {c.ratio_with:.3f} x, gain {c.gain:.3f} noise variances, "
             f"p {c.p:.2g} ({c.seconds:.1f} s check, {time.perf_counter() - t0:.0f} s)",
             flush=True,
         )

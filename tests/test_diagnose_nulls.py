@@ -151,7 +151,7 @@ def test_a_calibration_no_classical_model_needs_is_not_named(model_and_device, m
     from preisach.diagnose.context import Context
     from preisach.diagnose.data import prepare_recordings
 
-    congruency = importlib.import_module("preisach.diagnose.congruency")
+    selection = importlib.import_module("preisach.diagnose.selection")
     model, dev = model_and_device
     clean = _session(dev, _inputs(), 0.0, seed=7)
     ident = model.identification
@@ -159,8 +159,8 @@ def test_a_calibration_no_classical_model_needs_is_not_named(model_and_device, m
         ctx = Context(model, prepare_recordings(model, recs, identification=ident), refit=True)
         cc = output_curve_check(ctx, NOISE, powers=(1,), identification=False)
         assert (cc.gain > 1.0 and cc.p < 0.01) if beyond else cc.gain < 0.02, cc
-    monkeypatch.setattr(congruency, "CURVE_BEYOND_CLASSICAL", 1e9)
+    monkeypatch.setattr(selection, "FORM_BEYOND_CLASSICAL", 1e9)
     rep = diagnose(model, _recalibrated(clean, *RECAL), candidates=["gain_offset"])
     assert rep.verdict != "gain_offset"
     first = {c["name"]: c["decision"] for c in rep.candidates if c["step"] == 1}
-    assert "explains what the calibration does" in first["gain_offset"], first
+    assert "initial states explains what it does" in first["gain_offset"], first

@@ -170,6 +170,17 @@ class Candidate:
         """
         return np.zeros(0)
 
+    def classical_columns(self, ctx: Context, x: Array) -> tuple[list[Array], Array | None] | None:
+        """Return the fitted effect's own columns, when its output is linear in coefficients.
+
+        Per recording, the features (one column each, their coefficients shared by all
+        recordings) of what the effect adds to a classical Preisach output, and the effect's
+        own penalty on their coefficients (or None): the selection holds them against the
+        fine classical model (:func:`~preisach.diagnose.scoring.beyond_classical`).  None
+        (the default) for a form that is not linear in its coefficients.
+        """
+        return None
+
     def implausible(self, x: Array, ctx: Context) -> str | None:
         """Why the fitted ``x`` does not fit this effect's name (None when it does).
 
@@ -801,6 +812,12 @@ class GainOffsetCandidate(Candidate):
     def params(self, x: Array) -> dict[str, Any]:
         return {"gain": float(x[0]), "offset": float(x[1])}
 
+    def classical_columns(self, ctx: Context, x: Array) -> tuple[list[Array], Array | None] | None:
+        """Return a zero and a scale of the diagnosis recordings (``congruency.output_level``)."""
+        from .congruency import output_level
+
+        return output_level(ctx, (0, 1), identification=False), None
+
     def apply(self, x: Array, signal_in: Array, dt: float, stage: Stage, ctx: Context) -> Array:
         """Scale and shift the diagnosis recordings; the identification recordings set the scale.
 
@@ -841,6 +858,12 @@ class SensorNonlinearityCandidate(Candidate):
 
     def params(self, x: Array) -> dict[str, Any]:
         return {"c2": float(x[0]), "c3": float(x[1]), **self.fixed}
+
+    def classical_columns(self, ctx: Context, x: Array) -> tuple[list[Array], Array | None] | None:
+        """Return the square and cube of the output level (:func:`.congruency.output_level`)."""
+        from .congruency import output_level
+
+        return output_level(ctx, (2, 3)), None
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         b = cast(LevelDependentGain, self.block(x, 1.0))

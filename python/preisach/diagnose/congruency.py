@@ -32,8 +32,6 @@ classical model, see docs/diagnosis.md.
 
 from __future__ import annotations
 
-import math
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -42,16 +40,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .context import Chain, Context
-from .scoring import (
-    CHECK_LEVELS,
-    CHECK_SMOOTHING,
-    CHECK_STATE_KNOTS,
-    CHECK_STRETCH,
-    fine_system,
-    sign_flip_p,
-)
+from .scoring import BeyondClassical, beyond_classical
 
-__all__ = ["CURVE_BEYOND_CLASSICAL", "OutputCurveCheck", "output_curve_check"]
+__all__ = ["CURVE_BEYOND_CLASSICAL", "OutputCurveCheck", "output_curve_check", "output_level"]
 
 Array = NDArray[np.float64]
 
@@ -62,24 +53,10 @@ CURVE_BEYOND_CLASSICAL = 0.1
 
 
 @dataclass
-class OutputCurveCheck:
-    """Outcome of :func:`output_curve_check`."""
+class OutputCurveCheck(BeyondClassical):
+    """Outcome of :func:`output_curve_check` (``coef`` in V per power of the output level)."""
 
-    gain: float  # held-out MSE lowered by the output curve, in noise variances
-    p: float  # one-sided sign-flip p over the recordings' time blocks
-    ratio_classical: float  # held-out RMS / noise, fine classical model
-    ratio_curve: float  # held-out RMS / noise, with the static output curve
-    powers: tuple[int, ...]
-    seconds: float
-    #: the curve's coefficient (V) of each power of the output level (the mean of the two
-    #: folds' fits); the output level is the given model's simulation scaled to [-1, 1]
-    coef: tuple[float, ...] = ()
-    #: the fitted curve (V) per recording (zeros where it does not act)
-    curves: list[Array] | None = None
-
-    def passes(self, alpha: float = 0.01) -> bool:
-        """Whether the curve adds at least :data:`CURVE_BEYOND_CLASSICAL` at level ``alpha``."""
-        return bool(self.gain >= CURVE_BEYOND_CLASSICAL and self.p < alpha)
+    powers: tuple[int, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready fields."""
@@ -87,11 +64,29 @@ class OutputCurveCheck:
             "gain_noise_variances": self.gain,
             "p": self.p,
             "ratio_classical": self.ratio_classical,
-            "ratio_curve": self.ratio_curve,
+            "ratio_curve": self.ratio_with,
             "powers": list(self.powers),
-            "coefficients": list(self.coef),
+            "coefficients": [float(c) for c in self.coef],
             "seconds": self.seconds,
         }
+
+
+def output_level(ctx: Context, powers: Sequence[int], identification: bool = True) -> list[Array]:
+    """Powers of the output level ``d`` per recording (columns), zeros where they do not act.
+
+    ``d`` is the given model's simulation scaled to [-1, 1] over the output range (no
+    measured output enters a feature).  ``identification``: whether the columns act on the
+    identification recordings too; without, ``powers=(0, 1)`` are a zero and a scale of the
+    diagnosis recordings that differ from the identification's (a sensor recalibrated between
+    them; a scale and zero common to both are the weights' own).
+    """
+    sims = ctx.predict(Chain(ctx.given))
+    out = []
+    for i, r in enumerate(ctx.recs):
+        d = np.clip((np.nan_to_num(sims[i]) - ctx.y_centre) / ctx.y_half_span, -1.5, 1.5)
+        on = identification or not r.ident
+        out.append(np.column_stack([d**k if on else np.zeros_like(d) for k in powers]))
+    return out
 
 
 def output_curve_check(
@@ -99,55 +94,14 @@ def output_curve_check(
     sigma: float,
     *,
     powers: Sequence[int] = (2, 3),
-    levels: int = CHECK_LEVELS,
-    smoothing: float = CHECK_SMOOTHING,
-    stretch: float = CHECK_STRETCH,
-    state_knots: int = CHECK_STATE_KNOTS,
     seed: int = 0,
     identification: bool = True,
 ) -> OutputCurveCheck:
     """Measure what a static curve of the output adds to the fine classical model.
 
-    See the module docstring.  Both models are fitted by least squares (the classical part
-    exactly as in :func:`~preisach.diagnose.scoring.classical_check`) to the identification
-    recordings and every other ``stretch``-second stretch of the diagnosis recordings, and
-    predict the stretches in between (two folds).  ``sigma`` is the noise (V).
-    ``identification``: whether the curve acts on the identification recordings too; without,
-    ``powers=(1,)`` measures a scale of the diagnosis recordings that differs from the
-    identification's (a sensor calibration changed between them; a scale common to both is
-    the weights' own).
+    See the module docstring: :func:`~preisach.diagnose.scoring.beyond_classical` with the
+    columns :func:`output_level` (``powers``, ``identification``).  ``sigma`` is the noise (V).
     """
-    t0 = time.perf_counter()
     pw = tuple(int(k) for k in powers)
-    sims = ctx.predict(Chain(ctx.given))
-    curve = []
-    for i in range(len(ctx.recs)):
-        d = np.clip((np.nan_to_num(sims[i]) - ctx.y_centre) / ctx.y_half_span, -1.5, 1.5)
-        on = identification or not ctx.recs[i].ident
-        curve.append(np.column_stack([d**k if on else np.zeros_like(d) for k in pw]))
-    fs = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots, shared=curve)
-    P = fs.A.shape[1]
-    sse = np.zeros((2, fs.nb))
-    cnt = np.zeros(fs.nb)
-    coef = np.zeros(len(pw))
-    for k in (0, 1):
-        for s, keep in enumerate((np.arange(P - len(pw)), np.arange(P))):
-            w = fs.solve(k, smoothing, keep=keep)
-            sse_k, cnt_k = fs.heldout_sse(k, w)
-            sse[s] += sse_k
-        coef += 0.5 * w[P - len(pw) :]
-        cnt += cnt_k
-    tot = max(float(cnt.sum()), 1.0)
-    mse0, mse1 = float(sse[0].sum()) / tot, float(sse[1].sum()) / tot
-    used = cnt > 0
-    pos = sigma > 0
-    return OutputCurveCheck(
-        (mse0 - mse1) / sigma**2 if pos else float("inf"),
-        sign_flip_p((sse[0] - sse[1])[used], seed=seed),
-        math.sqrt(mse0) / sigma if pos else float("inf"),
-        math.sqrt(mse1) / sigma if pos else float("inf"),
-        pw,
-        time.perf_counter() - t0,
-        tuple(float(c) for c in coef),
-        [c @ coef for c in curve],
-    )
+    res = beyond_classical(ctx, sigma, output_level(ctx, pw, identification), seed=seed)
+    return OutputCurveCheck(**vars(res), powers=pw)

