@@ -573,13 +573,7 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
                 "fixed": True,
             }
         if isinstance(cand, DriftCandidate):
-            p2p = {recs[i].name: float(np.ptp(drift_curves[i][recs[i].usable])) for i in diag}
-            params["peak_to_peak"] = {
-                "value": max(p2p.values()),
-                "std": float("nan"),
-                "unit": "V",
-                "per_recording": p2p,
-            }
+            params["peak_to_peak"] = _peak_to_peak(ctx, drift_curves)
         effects.append(
             EffectReport(
                 name=name,
@@ -593,6 +587,17 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
             )
         )
     return _Final(names, chain, effects, drift_eff, ambiguous)
+
+
+def _peak_to_peak(ctx: Context, curves: Sequence[np.ndarray]) -> dict[str, Any]:
+    """Return the ``peak_to_peak`` parameter of fitted curves (largest, and per recording)."""
+    p2p = {ctx.recs[i].name: float(np.ptp(curves[i][ctx.recs[i].usable])) for i in ctx.diag}
+    return {
+        "value": max(p2p.values()),
+        "std": float("nan"),
+        "unit": ctx.output_unit or "V",
+        "per_recording": p2p,
+    }
 
 
 def _wander_drift(
@@ -680,8 +685,8 @@ def _classical_change(
     before = float(check["heldout_rmse"])
     after = math.sqrt(max(before**2 - gain * sigma**2, 0.0))
     diag = list(ctx.diag)
-    p2p = {ctx.recs[i].name: float(np.ptp(curves[i][ctx.recs[i].usable])) for i in diag}
-    amount = amount_text(max(p2p.values()), ctx.output_unit, ".2g")
+    size = _peak_to_peak(ctx, curves)
+    amount = amount_text(size["value"], ctx.output_unit, ".2g")
     hidden = (
         "too small against the model's resolution for a fit on other time blocks to show; "
         "identify on a finer grid of reversal levels so that it stands out"
@@ -715,14 +720,7 @@ def _classical_change(
             f"into them has t = {motion.follows_t:.2g} (bar {HOLD_FOLLOWS_T:g}): {why}"
         ),
         where=where_of([ctx.recs[i] for i in diag], [curves[i] for i in diag], ctx.u_span),
-        parameters={
-            "peak_to_peak": {
-                "value": max(p2p.values()),
-                "std": float("nan"),
-                "unit": ctx.output_unit or "V",
-                "per_recording": p2p,
-            },
-        },
+        parameters={"peak_to_peak": size},
         heldout_rmse_before=before,
         heldout_rmse_after=after,
         holds=motion.as_dict(),
@@ -757,7 +755,6 @@ def _classical_curve(
 
     lo, hi = height(-0.8), height(0.8)
     diag = list(ctx.diag)
-    p2p = {ctx.recs[i].name: float(np.ptp(curves[i][ctx.recs[i].usable])) for i in diag}
     return EffectReport(
         name="non_congruence",
         statement=(
@@ -783,12 +780,7 @@ def _classical_curve(
         parameters={
             "height_bottom": {"value": lo, "std": float("nan"), "unit": ""},
             "height_top": {"value": hi, "std": float("nan"), "unit": ""},
-            "peak_to_peak": {
-                "value": max(p2p.values()),
-                "std": float("nan"),
-                "unit": ctx.output_unit or "V",
-                "per_recording": p2p,
-            },
+            "peak_to_peak": _peak_to_peak(ctx, curves),
         },
         heldout_rmse_before=before,
         heldout_rmse_after=after,
