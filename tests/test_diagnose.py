@@ -13,7 +13,7 @@ from preisach.diagnose import (
     AugmentedModel,
     DiagnosisReport,
     FirstOrderInputLag,
-    FractionalDelay,
+    FirstOrderOutputLag,
     SecondOrderMode,
     analyse_residuals,
     diagnose,
@@ -79,7 +79,8 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
         for p in e["parameters"].values():
             assert {"value", "std", "unit"} <= set(p)
     first = d["effects"][0]
-    assert first["name"] == "delay" and "lags the input by" in first["evidence"]
+    # the case's delay is a first-order lag (studies.diagnosis_cases): the form that names it
+    assert first["name"] == "delay" and "first-order filter" in first["evidence"]
     assert set(first["where"]) >= {"recordings", "direction", "near_reversals", "band_Hz"}
     assert d["rmse_after"] < d["rmse_before"]
 
@@ -91,7 +92,7 @@ def test_report_statement_parameters_and_uncertainty(delay_case, delay_report):
     assert tau["value"] == pytest.approx(delay_case.truth["strength"], rel=0.2)
     import re
 
-    stated = re.search(r"lags the input by ([0-9.]+) ± ([0-9.]+) ms", e.statement)
+    stated = re.search(r"time constant ([0-9.]+) ± ([0-9.]+) ms", e.statement)
     assert stated is not None
     assert float(stated.group(1)) == pytest.approx(1e3 * tau["value"], abs=float(stated.group(2)))
     text = delay_report.summary()
@@ -119,7 +120,7 @@ def test_plot_returns_a_labelled_figure(delay_report):
 
 def test_augmented_model_round_trip_and_simulation(delay_report, delay_case, tmp_path):
     aug = delay_report.model
-    assert any(isinstance(b, FractionalDelay) for b in aug.blocks)
+    assert any(isinstance(b, FirstOrderOutputLag) for b in aug.blocks)  # the case's lag
     path = tmp_path / "aug.npz"
     aug.save(path)
     back = load_model(path)

@@ -35,6 +35,7 @@ from .effects import (
     FirstOrderOutputLag,
     FractionalDelay,
     GainOffset,
+    LagrangeDelay,
     LevelDependentGain,
     OutputFeedback,
     PronyCreep,
@@ -293,7 +294,7 @@ class DelayCandidate(LinearDynamicsForm):
     physics = (
         "the measured output lags the model (transport delay, ADC pipeline or measurement filter)"
     )
-    block_type = FractionalDelay
+    block_type: ClassVar[type[EffectBlock]] = FractionalDelay
 
     def specs(self, ctx: Context) -> list[ParamSpec]:
         return [ParamSpec("tau", "s", 0.0, ctx.max_delay, 1e-3)]
@@ -327,6 +328,36 @@ class DelayCandidate(LinearDynamicsForm):
             f"the measurement lags the input by {_pm(ms, e, '.3g')} ms "
             f"({ms / (1e3 * ctx.dt_min):.2g} samples): a transport delay or measurement filter; "
             f"shift the recorded output by this much or keep the delay block{self.general_block()}"
+        )
+
+
+class LagrangeDelayCandidate(DelayCandidate):
+    """A fractional delay with a flat magnitude: the band-limited output read late.
+
+    :class:`DelayCandidate` interpolates linearly between samples, which averages
+    neighbouring samples (at half a sample, a two-sample moving average: a decimation or
+    integrating-ADC filter); this form delays with third-order Lagrange interpolation
+    (:class:`~preisach.diagnose.effects.LagrangeDelay`), flat in magnitude.  The two differ
+    only where the output changes within a few samples (steps, sharp reversals); the held-out
+    error picks the form.
+    """
+
+    variant = "lagrange"
+    physics = (
+        "the measured output is read a fraction of a sample late with its full bandwidth "
+        "(input and output channels sampled one after the other, or a fractional-delay filter)"
+    )
+    block_type = LagrangeDelay
+
+    def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
+        ms, e = 1e3 * x[0], 1e3 * _sd(cov, 0)
+        return (
+            f"the measurement lags the input by {_pm(ms, e, '.3g')} ms "
+            f"({ms / (1e3 * ctx.dt_min):.2g} samples) with its full bandwidth (no averaging "
+            "of neighbouring samples): a skew between the input and output channels (a "
+            "multiplexed ADC samples them one after the other) or a fractional-delay filter; "
+            "shift the recorded output by this much with band-limited interpolation or keep "
+            f"the delay block{self.general_block()}"
         )
 
 

@@ -122,7 +122,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         "is at most this many times the noise estimated from the data; above it 'unexplained' "
         "(default 2)",
     )
-    p.add_argument("--candidates", help="comma-separated candidate names (default: all)")
+    p.add_argument(
+        "--candidates",
+        help="comma-separated effect names (all their forms) or form keys such as "
+        "delay/lagrange (default: all)",
+    )
     p.add_argument(
         "--cv",
         choices=("auto", "blocks", "recordings"),

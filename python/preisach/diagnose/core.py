@@ -216,9 +216,10 @@ def diagnose(
         identification recording (e.g. from a glob that matched the sweep too) is left out
         of the diagnosed set with a ``UserWarning``.
     candidates : sequence of str or Candidate, optional
-        Which explanations to test; default all of :data:`~preisach.diagnose.CANDIDATES`:
-        ``rate_dependence``, ``structural_resonance``, ``creep``, ``delay``,
-        ``sensor_drift``, ``non_congruence``, ``gain_offset``, ``sensor_nonlinearity``.
+        Which explanations to test; default all of :data:`~preisach.diagnose.CANDIDATES`.
+        An effect name (``rate_dependence``, ``structural_resonance``, ``creep``, ``delay``,
+        ``sensor_drift``, ``non_congruence``, ``gain_offset``, ``sensor_nonlinearity``)
+        tests all its forms; one form is given by its key (e.g. ``delay/lagrange``).
     initial_states : sequence, optional
         One per recording: a :class:`~preisach.State` or ``"negative_saturation"``,
         ``"positive_saturation"``, ``"anhysteretic"``, ``"unknown"``, ``"burn_in"`` or
@@ -401,22 +402,33 @@ def _check_options(
 
 
 def _resolve_candidates(candidates: Sequence[str | Candidate] | None) -> list[Candidate]:
-    """Candidate objects for names (an effect name stands for all its forms) or instances."""
-    cands: list[Candidate] = []
-    for c in candidates if candidates is not None else list(CANDIDATES):
+    """Candidate objects for effect names (all the effect's forms), form keys or instances.
+
+    Names and keys that cover the same form test it once; two instances of one form are an
+    error (their settings would compete).
+    """
+    if candidates is None:
+        return [c() for c in CANDIDATES.values()]
+    cands: dict[str, Candidate] = {}
+    instances: set[str] = set()
+    for c in candidates:
         if isinstance(c, Candidate):
-            cands.append(c)
+            if c.key in instances:
+                raise ValueError(f"candidates: two instances of {c.key!r}")
+            instances.add(c.key)
+            cands[c.key] = c
+            continue
+        if isinstance(c, str) and any(v.name == c for v in CANDIDATES.values()):
+            forms = [k for k, v in CANDIDATES.items() if v.name == c]
         elif isinstance(c, str) and c in CANDIDATES:
-            cands.append(CANDIDATES[c]())
-        elif isinstance(c, str) and any(v().name == c for v in CANDIDATES.values()):
-            cands += [v() for v in CANDIDATES.values() if v().name == c]
+            forms = [c]
         else:
             raise ValueError(
                 f"candidates: unknown candidate {c!r}; choose from {sorted(CANDIDATES)}"
             )
-    if len({c.key for c in cands}) != len(cands):
-        raise ValueError("candidates: each candidate may appear only once")
-    return cands
+        for k in forms:
+            cands.setdefault(k, CANDIDATES[k]())
+    return list(cands.values())
 
 
 @dataclass

@@ -28,11 +28,12 @@ training samples and **classifies its response**:
 The class names the effect: ``mode`` -> ``structural_resonance``; ``delay`` and ``lag`` ->
 ``delay`` (a first-order lag between the actuator and the reading is a measurement filter,
 which the vocabulary files under ``delay``: "transport delay, ADC pipeline or measurement
-filter"), in the forms ``pure delay`` and ``first_order_lag``.  The narrow parametric forms
+filter"), in the forms ``pure delay`` (linear or Lagrange interpolation) and
+``first_order_lag``.  The narrow parametric forms
 (:class:`~preisach.diagnose.candidates.ModeCandidate`, ``DelayCandidate``,
-``OutputLagCandidate``) remain as the refinement that gives the reported parameters, fitted
-with the Preisach weights refitted; a form whose class the general block does not show is
-refused as implausible for its name.
+``LagrangeDelayCandidate``, ``OutputLagCandidate``) remain as the refinement that gives the
+reported parameters, fitted with the Preisach weights refitted; a form whose class the
+general block does not show is refused as implausible for its name.
 """
 
 from __future__ import annotations
