@@ -185,3 +185,37 @@ def test_a_start_up_step_from_an_unknown_state_is_not_scored_by_the_fine_check()
             step = np.flatnonzero(np.abs(np.diff(r.u)) > 0)[0] + 1  # the move's first sample
             assert (fs.folds[i][step] == -1) == out, (lead, step)
             assert (fs.folds[i][r.usable] >= 0).mean() > 0.95
+
+
+def test_added_columns_extend_the_one_fine_system_exactly():
+    """The fine system is assembled once per context; an effect's columns border it.
+
+    Fails when the bordered normal equations differ from those of the dense design (the
+    Everett rows, each recording's state basis, its own columns and the shared ones), or
+    when a second call assembles the system again.
+    """
+    ctx = _context(0.0, start=0.0)
+    base = fine_system(ctx, levels=11)
+    assert fine_system(ctx, levels=11) is base
+    rng = np.random.default_rng(5)
+    own = [rng.normal(size=(r.n, 1 + i)) for i, r in enumerate(ctx.recs)]
+    shared = [rng.normal(size=(r.n, 2)) for r in ctx.recs]
+    fs = base.extended(own=own, shared=shared)
+    P = fs.A.shape[1]
+    assert P == base.A.shape[1] + sum(1 + i for i in range(len(ctx.recs))) + 2
+    for k in range(3):
+        want, rhs = np.zeros((P, P)), np.zeros(P)
+        for i, r in enumerate(ctx.recs):
+            X = np.zeros((r.n, P))
+            X[:, : fs.p] = fs.regs[i].toarray()
+            X[:, fs.cols[i]] = fs.feats[i]
+            m = fs.folds[i] == k
+            want += X[m].T @ X[m]
+            rhs += X[m].T @ r.y[m]
+        np.testing.assert_allclose(fs.A[k], want, rtol=1e-9, atol=1e-9 * np.abs(want).max())
+        np.testing.assert_allclose(fs.rhs[k], rhs, rtol=1e-9, atol=1e-9 * np.abs(rhs).max())
+    for i in range(len(ctx.recs)):  # each recording's own columns, then the shared ones
+        new = fs.feats[i][:, base.feats[i].shape[1] :]
+        np.testing.assert_array_equal(new[:, : 1 + i], own[i])
+        np.testing.assert_array_equal(new[:, 1 + i :], shared[i])
+        assert fs.own_cols[i].size == 1 + i

@@ -189,6 +189,8 @@ class Context:
         self._problem: Problem | None = None
         self._last_problem: Any = None
         self.n_evals = 0
+        #: the fine classical model's normal equations per setting (scoring.fine_system)
+        self.fine_systems: dict[tuple[int, float, int], Any] = {}
         self.refit = bool(refit)
         #: the refit's interpolation between its nodes: the given model's
         self.interpolation = model.interpolation

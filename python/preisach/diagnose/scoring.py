@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -289,12 +289,13 @@ def unvisited_bound(model: Any, u: Array, at: NDArray[np.int64]) -> Array:
 class FineSystem:
     """Normal equations of the fine classical model on interleaved stretches (two folds).
 
-    Built by :func:`fine_system`.  Columns: the ``p`` Everett nodes and output offset of
-    the ``levels``-level grid (order of ``preisach._core.regressor_rows``), then per
-    recording its initial-state basis (:func:`running_range_basis`, ``n_state[i]`` columns)
-    and its ``extra`` columns, then the ``shared`` columns common to all recordings.
-    ``A[k]``/``rhs[k]`` hold the samples of fold ``k`` (0, 1: alternate stretches of the
-    diagnosis recordings; 2: the identification recordings, always training).
+    Built by :func:`fine_system` (once per context) and :meth:`extended`.  Columns: the
+    ``p`` Everett nodes and output offset of the ``levels``-level grid (order of
+    ``preisach._core.regressor_rows``), then per recording its initial-state basis
+    (:func:`running_range_basis`, ``n_state[i]`` columns); an extended system then has per
+    recording columns of its own (:attr:`own_cols`) and last the columns all recordings
+    share.  ``A[k]``/``rhs[k]`` hold the samples of fold ``k`` (0, 1: alternate stretches of
+    the diagnosis recordings; 2: the identification recordings, always training).
     """
 
     ctx: Context
@@ -305,7 +306,7 @@ class FineSystem:
     Q: Array  # density roughness (p x p), scaled to trace p
     folds: list[NDArray[np.int64]]
     regs: list[sp.csr_matrix]
-    feats: list[Array]  # per recording: its columns' features (state basis, extra, shared)
+    feats: list[Array]  # per recording: its columns' features (state basis, own, shared)
     cols: list[NDArray[np.int64]]  # per recording: the indices of those columns
     n_state: list[int]
     nb: int  # number of time blocks
@@ -314,6 +315,78 @@ class FineSystem:
     #: (:func:`unvisited_bound`)
     lo: Array
     hi: Array
+    #: per recording: the indices of its own added columns (none in the base system)
+    own_cols: list[NDArray[np.int64]] = field(default_factory=list)
+    #: the base fits per smoothing (:meth:`fit`)
+    _fits: dict[float, tuple[list[Array], Array, Array]] = field(default_factory=dict, repr=False)
+
+    def extended(
+        self, own: list[Array] | None = None, shared: list[Array] | None = None
+    ) -> FineSystem:
+        """Return this system with more columns: ``own`` per recording, ``shared`` by all.
+
+        ``own[i]`` and ``shared[i]`` hold recording ``i``'s features (rows: its samples).
+        Only the new rows and columns of the normal equations are computed.
+        """
+        recs = self.ctx.recs
+        P0 = self.A.shape[1]
+        widths = [0 if own is None else int(own[i].shape[1]) for i in range(len(recs))]
+        offs = P0 + np.cumsum([0, *widths])
+        P = int(offs[-1]) + (0 if shared is None else int(shared[0].shape[1]))
+        A = np.zeros((3, P, P))
+        A[:, :P0, :P0] = self.A
+        rhs = np.zeros((3, P))
+        rhs[:, :P0] = self.rhs
+        p = self.p
+        feats, cols, own_cols = [], [], []
+        for i, r in enumerate(recs):
+            parts = ([] if own is None else [own[i]]) + ([] if shared is None else [shared[i]])
+            N = np.hstack(parts) if parts else np.zeros((r.n, 0))
+            new = np.r_[int(offs[i]) : int(offs[i + 1]), int(offs[-1]) : P]
+            F, old, R = self.feats[i], self.cols[i], self.regs[i]
+            for k in range(3):
+                m = self.folds[i] == k
+                if not m.any():
+                    continue
+                Nm = N[m]
+                A[k][:p, new] += np.asarray(R[m].T @ Nm)
+                A[k][np.ix_(old, new)] += F[m].T @ Nm
+                A[k][np.ix_(new, new)] += Nm.T @ Nm
+                rhs[k, new] += Nm.T @ r.y[m]
+            feats.append(np.hstack([F, N]))
+            cols.append(np.r_[old, new])
+            own_cols.append(np.arange(int(offs[i]), int(offs[i + 1])))
+        for k in range(3):  # the cross blocks were filled above the diagonal only
+            A[k, P0:, :P0] = A[k, :P0, P0:].T
+        extra = np.full(P - P0, np.inf)
+        return FineSystem(
+            self.ctx,
+            p,
+            A,
+            rhs,
+            np.r_[self.w0, np.zeros(P - P0)],
+            self.Q,
+            self.folds,
+            self.regs,
+            feats,
+            cols,
+            self.n_state,
+            self.nb,
+            np.r_[self.lo, -extra],
+            np.r_[self.hi, extra],
+            own_cols,
+        )
+
+    def fit(self, smoothing: float) -> tuple[list[Array], Array, Array]:
+        """Both folds' coefficients, held-out SSE and sample count per time block.
+
+        Cached per ``smoothing``: the classical check and every test against it share it.
+        """
+        if smoothing not in self._fits:
+            ws = [self.solve(k, smoothing) for k in (0, 1)]
+            got = [self.heldout_sse(k, w) for k, w in enumerate(ws)]
+            self._fits[smoothing] = (ws, got[0][0] + got[1][0], got[0][1] + got[1][1])
+        return self._fits[smoothing]
 
     def solve(
         self,
@@ -386,15 +459,23 @@ def fine_system(
     levels: int = CHECK_LEVELS,
     stretch: float = CHECK_STRETCH,
     state_knots: int = CHECK_STATE_KNOTS,
-    extra: list[Array] | None = None,
-    shared: list[Array] | None = None,
 ) -> FineSystem:
-    """Assemble the normal equations of :func:`classical_check`'s fine classical model.
+    """Return the normal equations of :func:`classical_check`'s fine classical model.
 
-    ``extra``: per recording, more columns of its own (e.g. a drift basis); ``shared``: per
-    recording, the features of columns whose coefficients all recordings share (e.g. a
-    static curve of the output).  See :class:`FineSystem`.
+    Assembled once per context and these settings (kept in ``ctx.fine_systems``); an
+    effect's columns are added with :meth:`FineSystem.extended`.  See :class:`FineSystem`.
     """
+    key = (int(levels), float(stretch), int(state_knots))
+    if key not in ctx.fine_systems:
+        ctx.fine_systems[key] = _assemble_fine_system(ctx, *key)
+    fs: FineSystem = ctx.fine_systems[key]
+    return fs
+
+
+def _assemble_fine_system(
+    ctx: Context, levels: int, stretch: float, state_knots: int
+) -> FineSystem:
+    """Assemble :func:`fine_system`'s normal equations."""
     n = int(levels)
     lv = np.linspace(ctx.model.u_min, ctx.model.u_max, n)
     p = n * (n - 1) // 2 + 1
@@ -416,11 +497,9 @@ def fine_system(
             state.append(B)
             bd = STATE_BOUND_FACTOR * unvisited_bound(ctx.model, r.u, at)
             bounds.append(np.maximum(bd, 1e-9 * max(ctx.y_span, 1e-12)))  # a box, not a point
-    own = [B if extra is None else np.hstack([B, extra[i]]) for i, B in enumerate(state)]
-    offs = np.cumsum([0] + [B.shape[1] for B in own])
+    offs = np.cumsum([0] + [B.shape[1] for B in state])
     q = int(offs[-1])
-    mc = 0 if shared is None else int(shared[0].shape[1])
-    P = p + q + mc
+    P = p + q
     A = np.zeros((3, P, P))
     rhs = np.zeros((3, P))
     folds: list[NDArray[np.int64]] = []
@@ -442,8 +521,8 @@ def fine_system(
         )
         indptr, idx, data, _ = _core.regressor_rows(lv, r.u, s0, "clamp")
         R = sp.csr_matrix((data, idx.astype(np.int64), indptr), shape=(r.n, p))
-        B = own[i] if shared is None else np.hstack([own[i], shared[i]])
-        cols = np.r_[p + int(offs[i]) : p + int(offs[i + 1]), p + q : P]
+        B = state[i]
+        cols = np.arange(p + int(offs[i]), p + int(offs[i + 1]))
         folds.append(fold)
         regs.append(R)
         feats.append(B)
@@ -463,7 +542,7 @@ def fine_system(
     a, bb = np.meshgrid(lv, lv, indexing="ij")
     e = ctx.model.everett(a, np.minimum(a, bb))
     ii, jj = np.tril_indices(n, -1)
-    w0 = np.concatenate([e[ii, jj], [ctx.model.y_min], np.zeros(q + mc)])
+    w0 = np.concatenate([e[ii, jj], [ctx.model.y_min], np.zeros(q)])
     Q = density_roughness(n).toarray()
     Q *= p / max(float(np.trace(Q)), 1e-300)
     nb = max(int(r.block.max()) for r in ctx.recs) + 1
@@ -486,6 +565,7 @@ def fine_system(
         nb,
         lo,
         hi,
+        [np.zeros(0, np.int64) for _ in ctx.recs],
     )
 
 
@@ -500,8 +580,6 @@ class ClassicalCheck:
     stretch: float  # length (s) of the interleaved held-out stretches
     seconds: float
     sse_blocks: Array  # held-out SSE per time block of the recordings (as in Score)
-    #: with ``drift``: each recording's fitted drift curve (V), the mean of the two folds' fits
-    drift_curves: list[Array] | None = None
 
     def as_dict(self) -> dict[str, float | int]:
         """JSON-ready fields."""
@@ -523,7 +601,6 @@ def classical_check(
     smoothing: float = CHECK_SMOOTHING,
     stretch: float = CHECK_STRETCH,
     state_knots: int = CHECK_STATE_KNOTS,
-    drift: bool = False,
 ) -> ClassicalCheck:
     """How close the best-resolved classical Preisach model comes to the diagnosis recordings.
 
@@ -546,40 +623,12 @@ def classical_check(
     no rate-independent, congruent model can produce (creep or drift while the input holds,
     rate dependence across experiments, a delay, ringing) stays.  The time-block folds of
     the selection instead hold out whole seconds, whose reversal points a fine grid has not
-    seen - the right test for an effect, too harsh for the base's resolution.
-
-    ``drift``: every recording also gets the sensor drift of the selection (the P-spline in
-    time of :meth:`Context.drift_basis` with its curvature penalty), to measure what a drift
-    adds to a classical model whose initial states are free; the fitted curves are returned
-    (:attr:`ClassicalCheck.drift_curves`).
+    seen - the right test for an effect, too harsh for the base's resolution.  What an
+    effect's own columns add to this model is :func:`beyond_classical`.
     """
     t0 = time.perf_counter()
-    extra: list[Array] | None = None
-    pens: list[Array] = []  # the drift blocks' curvature penalties
-    if drift:
-        extra = []
-        for i, r in enumerate(ctx.recs):
-            D = ctx.drift_basis(i)
-            m = D.shape[1]
-            dd = np.diff(np.eye(m), 2, axis=0) if m > 2 else np.zeros((0, m))
-            Du = D[r.usable]
-            lam = ctx.drift_smoothing * max(float(np.einsum("ij,ij->", Du, Du)) / m, 1e-300)
-            extra.append(D)
-            pens.append(lam * (dd.T @ dd))
-    fs = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots, extra=extra)
-    sse_b = np.zeros(fs.nb)
-    cnt_b = np.zeros(fs.nb)
-    # the drift columns follow each recording's state columns
-    add = [(int(fs.cols[i][0]) + fs.n_state[i], pen) for i, pen in enumerate(pens)]
-    curves = None if extra is None else [np.zeros(r.n) for r in ctx.recs]
-    for k in (0, 1):
-        w = fs.solve(k, smoothing, add=add)
-        sse, cnt = fs.heldout_sse(k, w)
-        sse_b += sse
-        cnt_b += cnt
-        if extra is not None and curves is not None:
-            for i, (c0, _) in enumerate(add):
-                curves[i] += 0.5 * (extra[i] @ w[c0 : c0 + extra[i].shape[1]])
+    fs = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots)
+    _, sse_b, cnt_b = fs.fit(smoothing)
     rmse = math.sqrt(float(sse_b.sum()) / max(float(cnt_b.sum()), 1.0))
     ratio = rmse / sigma if sigma > 0 else float("inf")
     seconds = time.perf_counter() - t0
@@ -591,7 +640,6 @@ def classical_check(
         float(stretch),
         seconds,
         sse_b[cnt_b > 0],
-        curves,
     )
 
 
@@ -615,8 +663,10 @@ class BeyondClassical:
 def beyond_classical(
     ctx: Context,
     sigma: float,
-    columns: list[Array],
+    columns: list[Array] | None = None,
     *,
+    own: list[Array] | None = None,
+    own_penalties: list[Array] | None = None,
     levels: int = CHECK_LEVELS,
     smoothing: float = CHECK_SMOOTHING,
     stretch: float = CHECK_STRETCH,
@@ -628,44 +678,47 @@ def beyond_classical(
 
     ``columns``: per recording, the features (one column each, shared by all recordings) of
     an effect whose output is linear in its coefficients - a static curve of the output, a
-    calibration, rate-dependent Everett increments.  Both models, without and with them, are
-    fitted by least squares exactly as the fine classical model is (to the identification
-    recordings and every other ``stretch``-second stretch of the diagnosis recordings, each
-    recording's unknown initial state free) and predict the stretches in between (two
-    folds).  What the columns gain there is what no classical model makes: a candidate whose
-    held-out gain on the selection's time blocks a fine classical model explains as well
-    was explaining the base's resolution or its initial states, not its own physics.
-    ``penalty``: the effect's own regularisation of its coefficients (``m x m``, relative to
-    the mean diagonal of their normal matrix), e.g. a smoothness across rate.  ``sigma`` is
-    the noise (V).
+    calibration, rate-dependent Everett increments; ``own``: per recording, columns of its
+    own (a sensor drift's spline in time, which wanders differently in every recording).
+    Both models, without and with them, are fitted by least squares exactly as the fine
+    classical model is (to the identification recordings and every other ``stretch``-second
+    stretch of the diagnosis recordings, each recording's unknown initial state free) and
+    predict the stretches in between (two folds).  What the columns gain there is what no
+    classical model makes: a candidate whose held-out gain on the selection's time blocks a
+    fine classical model explains as well was explaining the base's resolution or its
+    initial states, not its own physics.  ``penalty``: the effect's own regularisation of
+    the shared coefficients (``m x m``, relative to the mean diagonal of their normal
+    matrix), e.g. a smoothness across rate; ``own_penalties``: per recording, the penalty
+    (absolute, V^-2 units of the normal matrix) of its own columns.  ``sigma`` is the noise
+    (V).  :attr:`BeyondClassical.coef` holds the added coefficients (own, then shared).
     """
     t0 = time.perf_counter()
-    fs = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots, shared=columns)
-    P = fs.A.shape[1]
-    m = int(columns[0].shape[1])
-    sse = np.zeros((2, fs.nb))
-    cnt = np.zeros(fs.nb)
-    coef = np.zeros(m)
+    base = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots)
+    _, sse0, cnt = base.fit(smoothing)
+    fs = base.extended(own=own, shared=columns)
+    P0, P = base.A.shape[1], fs.A.shape[1]
+    m = 0 if columns is None else int(columns[0].shape[1])
+    fixed = [(int(c[0]), pen) for c, pen in zip(fs.own_cols, own_penalties or []) if c.size]
+    sse1 = np.zeros(fs.nb)
+    w_mean = np.zeros(P)
     for k in (0, 1):
-        add = []
-        if penalty is not None:
-            own = fs.A[1 - k, P - m :, P - m :] + fs.A[2, P - m :, P - m :]
-            add = [(P - m, penalty * max(float(np.trace(own)) / m, 1e-300))]
-        for s, keep in enumerate((np.arange(P - m), np.arange(P))):
-            w = fs.solve(k, smoothing, keep=keep, add=add if s else None)
-            sse_k, cnt_k = fs.heldout_sse(k, w)
-            sse[s] += sse_k
-        coef += 0.5 * w[P - m :]
-        cnt += cnt_k
+        add = list(fixed)
+        if penalty is not None and m:
+            block = fs.A[1 - k, P - m :, P - m :] + fs.A[2, P - m :, P - m :]
+            add.append((P - m, penalty * max(float(np.trace(block)) / m, 1e-300)))
+        w = fs.solve(k, smoothing, add=add)
+        sse1 += fs.heldout_sse(k, w)[0]
+        w_mean += 0.5 * w
     tot = max(float(cnt.sum()), 1.0)
-    mse0, mse1 = float(sse[0].sum()) / tot, float(sse[1].sum()) / tot
+    mse0, mse1 = float(sse0.sum()) / tot, float(sse1.sum()) / tot
     pos = sigma > 0
+    n_old = [base.feats[i].shape[1] for i in range(len(ctx.recs))]
     return BeyondClassical(
         (mse0 - mse1) / sigma**2 if pos else float("inf"),
-        sign_flip_p((sse[0] - sse[1])[cnt > 0], seed=seed),
+        sign_flip_p((sse0 - sse1)[cnt > 0], seed=seed),
         math.sqrt(mse0) / sigma if pos else float("inf"),
         math.sqrt(mse1) / sigma if pos else float("inf"),
-        coef,
-        [c @ coef for c in columns],
+        w_mean[P0:],
+        [F[:, n:] @ w_mean[c[n:]] for F, c, n in zip(fs.feats, fs.cols, n_old)],
         time.perf_counter() - t0,
     )

@@ -67,7 +67,7 @@ from .holds import HoldEvidence, HoldPieces, hold_evidence, hold_pieces
 from .linear_block import rate_not_shown
 from .locate import amount_text
 from .scoring import (
-    ClassicalCheck,
+    BeyondClassical,
     Score,
     beyond_classical,
     classical_check,
@@ -377,23 +377,25 @@ def choose_grid(
     return GridChoice(ctx, chains, score, report)
 
 
-def _drift_beyond_classical(
-    ctx: Context, sigma: float, seed: int, without: ClassicalCheck | None = None
-) -> tuple[float, float, list[np.ndarray]]:
+def _drift_beyond_classical(ctx: Context, sigma: float, seed: int) -> BeyondClassical:
     """Measure what a sensor drift adds to the fine classical model of the resolution check.
 
-    Returns the reduction of the interleaved held-out mean-square error (in noise
-    variances) when every recording gets the drift spline, the one-sided sign-flip
-    p-value of that reduction over the recordings' time blocks, and the fitted drift
-    curves (V, per recording).  ``without``: the check without the drift when the caller
-    has it.
+    :func:`~preisach.diagnose.scoring.beyond_classical` with every recording's drift spline
+    (:meth:`Context.drift_basis`) and its curvature penalty as the recording's own columns:
+    the reduction of the interleaved held-out mean-square error (in noise variances), the
+    one-sided sign-flip p-value over the recordings' time blocks, and the fitted drift
+    curves (V, per recording).
     """
-    if without is None:
-        without = classical_check(ctx, sigma)
-    with_drift = classical_check(ctx, sigma, drift=True)
-    gain = (without.rmse**2 - with_drift.rmse**2) / sigma**2 if sigma > 0 else float("inf")
-    p = sign_flip_p(without.sse_blocks - with_drift.sse_blocks, seed=seed)
-    return gain, p, with_drift.drift_curves or []
+    own, pens = [], []
+    for i, r in enumerate(ctx.recs):
+        D = ctx.drift_basis(i)
+        m = D.shape[1]
+        dd = np.diff(np.eye(m), 2, axis=0) if m > 2 else np.zeros((0, m))
+        Du = D[r.usable]
+        lam = ctx.drift_smoothing * max(float(np.einsum("ij,ij->", Du, Du)) / m, 1e-300)
+        own.append(D)
+        pens.append(lam * (dd.T @ dd))
+    return beyond_classical(ctx, sigma, own=own, own_penalties=pens, seed=seed)
 
 
 def resolution_check(
@@ -473,14 +475,14 @@ def resolution_check(
             )
     drift = None
     if ok:  # nor does any classical model follow a slow change in time (a drift or creep)
-        gain, p, fitted = _drift_beyond_classical(ctx, sigma, seed=0, without=chk)
-        drift = {"gain_noise_variances": gain, "p": p}
-        if gain >= DRIFT_BEYOND_CLASSICAL and p < 0.01:
+        dc = _drift_beyond_classical(ctx, sigma, seed=0)
+        drift = {"gain_noise_variances": dc.gain, "p": dc.p}
+        if dc.passes(DRIFT_BEYOND_CLASSICAL):
             ok = False
-            curves = fitted
+            curves = dc.curves
             statement = (
-                f"{within}, but a slow drift in time adds {gain:.2g} x the noise variance to "
-                f"it (p = {p:.2g}; bar "
+                f"{within}, but a slow drift in time adds {dc.gain:.2g} x the noise variance "
+                f"to it (p = {dc.p:.2g}; bar "
                 f"{DRIFT_BEYOND_CLASSICAL:g}): the recordings change in time in a way no "
                 "classical Preisach model follows, even with its initial states free - a "
                 "sensor drift, creep or a temperature change; the same step-and-hold at the "
@@ -544,7 +546,7 @@ def run_selection(
         baseline = given
     kept: list[str] = []
     drift = False
-    drift_check: tuple[float, float, list[np.ndarray]] | None = None
+    drift_check: BeyondClassical | None = None
     pieces = hold_pieces(ctx)
     steps: list[StepResult] = []
     remaining = {c.key: c for c in candidates}
@@ -683,14 +685,13 @@ def run_selection(
             ):
                 if drift_check is None:
                     drift_check = _drift_beyond_classical(ctx, sigma, seed=len(steps))
-                gain_c, p_c, _ = drift_check
-                if gain_c < DRIFT_BEYOND_CLASSICAL or p_c >= alpha:
+                if not drift_check.passes(DRIFT_BEYOND_CLASSICAL, alpha):
                     ok[name] = False
                     why[name] = (
                         "implausible for its name: a classical Preisach model with free "
                         f"initial states explains what the drift does (the drift adds "
-                        f"{gain_c:.2f} x the noise variance on interleaved held-out "
-                        f"stretches, < {DRIFT_BEYOND_CLASSICAL:g}, or p = {p_c:.2g})"
+                        f"{drift_check.gain:.2f} x the noise variance on interleaved held-out "
+                        f"stretches, < {DRIFT_BEYOND_CLASSICAL:g}, or p = {drift_check.p:.2g})"
                     )
         # an effect whose form is linear in its coefficients is named only for what no
         # classical model makes: its own columns must add FORM_BEYOND_CLASSICAL to the fine
@@ -734,6 +735,7 @@ def run_selection(
             n_par,
             ok,
             lambda d: sign_flip_p(d, seed=len(steps)),
+            tie_alpha,
         ).items():
             ok[name], why[name] = False, why_not
         # a drift must show where the input cannot act: the output moves through the holds
