@@ -10,6 +10,7 @@ from preisach.diagnose.effects import (
     FirstOrderInputLag,
     FractionalDelay,
     GainOffset,
+    LagrangeDelay,
     OutputFeedback,
     PronyCreep,
     ReversibleRelaxation,
@@ -46,6 +47,22 @@ def test_delay_by_preview_is_exact(tau):
     if tau == 3e-3:  # a whole number of samples: the classical inverse of the advanced reference
         np.testing.assert_allclose(
             r.input[:-3], BASE.inverse(y[3:], BASE.negative_saturation()).input, atol=1e-9
+        )
+
+
+@pytest.mark.parametrize("tau", [0.4e-3, 0.5e-3, 2.0e-3, 2.7e-3])
+def test_a_lagrange_delay_is_undone_by_reading_the_reference_ahead(tau):
+    """The flat-magnitude delay of diagnosis (``delay/lagrange``): the drive reads the
+    reference ``tau`` ahead with the same interpolation; a slow reference comes back."""
+    model = AugmentedModel(BASE, [LagrangeDelay(DT, tau=tau)])
+    y = sine()
+    r = invert_augmented(model, y, BASE.negative_saturation(), sample_time=DT)
+    n = int(np.ceil(tau / DT)) + 2
+    swing = float(np.ptp(y))
+    np.testing.assert_allclose(r.output[n:-n], y[n:-n], atol=1e-8 * swing)  # linear: 2e-6
+    if tau == 2.0e-3:  # whole samples: the classical inverse of the advanced reference
+        np.testing.assert_allclose(
+            r.input[:-2], BASE.inverse(y[2:], BASE.negative_saturation()).input, atol=1e-9
         )
 
 

@@ -13,7 +13,11 @@ What is inverted, and how (``dt`` the sample time):
     ``tau = (n + f) dt`` the block is ``y[k] = (1 - f) x[k-n] + f x[k-n-1]``; for ``f <= 1/2``
     it is solved forwards, for ``f > 1/2`` backwards from the end of the reference (both
     recursions stable), so the interpolation is undone exactly.  The last ``n + 1`` targets
-    are held (no preview exists beyond the end).
+    are held (no preview exists beyond the end).  A delay read by Lagrange interpolation
+    (``interpolation = "lagrange"``, a flat magnitude) is undone by reading the reference
+    ``tau`` ahead with the same third-order interpolation, centred: exact for whole
+    samples, and within that interpolation's error otherwise (for a slow reference far
+    below it: a 1 Hz sine at 1 kHz comes back to 1e-10 of its swing).
 ``structural_mode`` (``y = x + m (G x - x) - r A x``, ``G`` and ``A`` the ZOH-exact
     second-order mode and its acceleration response; ``y = c / a \, x``)
     ``x = a / c \, y`` with ``c = (1 - m) a + m b`` (``r = 0``; else ``c`` the block's whole
@@ -62,8 +66,28 @@ def _steady_zi(b: Array, a: Array) -> Array:
     return np.asarray(np.cumsum((bb - aa * g)[::-1])[::-1][1:])
 
 
+def _advance(y: Array, d: float) -> Array:
+    """``y`` read ``d`` samples ahead by centred third-order Lagrange interpolation.
+
+    The ends are held (no sample exists beyond them).
+    """
+    m = y.size
+    t = np.arange(m) + d
+    n = np.floor(t).astype(np.int64)
+    f = t - n
+    w = (
+        -f * (f - 1) * (f - 2) / 6,
+        (f + 1) * (f - 1) * (f - 2) / 2,
+        -(f + 1) * f * (f - 2) / 2,
+        (f + 1) * f * (f - 1) / 6,
+    )
+    return np.asarray(sum(wk * y[np.clip(n + k - 1, 0, m - 1)] for k, wk in enumerate(w)))
+
+
 def _inv_delay(blk: Any, y: Array, dt: float) -> Array:
     d = float(blk.params["tau"]) / dt
+    if getattr(blk, "interpolation", "linear") == "lagrange":
+        return _advance(y, d)
     n = int(math.floor(d))
     f = d - n
     m = y.size

@@ -461,7 +461,42 @@ class PronyCreep(EffectBlock):
         return np.asarray(y, dtype=float)
 
 
-class FractionalDelay(EffectBlock):
+class _TapDelay(EffectBlock):
+    """A delay read through FIR taps: ``y[n] = sum_k h_k x[n - M - k]`` (output side).
+
+    Subclasses give ``M`` and the taps ``h`` (summing to 1) for the delay in samples
+    (:meth:`_taps`).
+    """
+
+    kind = "delay"
+    side = "output"
+    PARAMS = (("tau", "s"),)
+    DOMAIN = {"tau": ">=0"}
+
+    def _taps(self, d: float) -> tuple[int, Array]:
+        raise NotImplementedError  # pragma: no cover
+
+    def _derive(self) -> None:
+        self._m, self._h = self._taps(self._params["tau"] / self.dt)
+        self._buf = np.zeros(self._m + self._h.size - 1)
+
+    def reset(self, x0: float) -> float:
+        """Buffer filled with ``x0``; returns ``x0`` (the taps sum to 1)."""
+        x0 = _finite(self.kind, "x0", x0)
+        self._buf = np.full(self._buf.size, x0)
+        return x0
+
+    def _run(self, x: Array) -> Array:
+        full = np.concatenate([self._buf, x])
+        last = self._h.size - 1
+        y = np.zeros(x.size)
+        for k, h in enumerate(self._h):  # full[last - k + t] is x[t - M - k]
+            y += h * full[last - k : last - k + x.size]
+        self._buf = full[full.size - self._buf.size :]
+        return y
+
+
+class FractionalDelay(_TapDelay):
     """Transport delay or measurement lag of the output (output side).
 
     ``y(t) = x(t - tau)``, linearly interpolated between samples, so ``tau`` need not be a
@@ -476,33 +511,15 @@ class FractionalDelay(EffectBlock):
 
     """
 
-    kind = "delay"
-    side = "output"
-    PARAMS = (("tau", "s"),)
-    DOMAIN = {"tau": ">=0"}
+    #: how the reading between samples is made (``preisach.compensate`` inverts accordingly)
+    interpolation = "linear"
 
-    def _derive(self) -> None:
-        d = self._params["tau"] / self.dt
-        self._n = int(math.floor(d))
-        self._frac = d - self._n
-        self._buf = np.zeros(self._n + 1)
-
-    def reset(self, x0: float) -> float:
-        """Buffer filled with ``x0``; returns ``x0``."""
-        x0 = _finite(self.kind, "x0", x0)
-        self._buf = np.full(self._n + 1, x0)
-        return x0
-
-    def _run(self, x: Array) -> Array:
-        full = np.concatenate([self._buf, x])
-        k0 = self._buf.size  # index of x[0] in full
-        s = k0 - self._n  # full[s + t] is x delayed by n samples (slices, not an index array)
-        y = (1 - self._frac) * full[s : s + x.size] + self._frac * full[s - 1 : s - 1 + x.size]
-        self._buf = full[-(self._n + 1) :]
-        return np.asarray(y, dtype=float)
+    def _taps(self, d: float) -> tuple[int, Array]:
+        n = int(math.floor(d))
+        return n, np.array([1.0 - (d - n), d - n])
 
 
-class LagrangeDelay(EffectBlock):
+class LagrangeDelay(_TapDelay):
     """Fractional delay with a flat magnitude: third-order Lagrange interpolation (output side).
 
     ``y[n] = sum_k h_k x[n - M - k]`` for ``k = 0..3``, with ``h_k = prod_{j != k} (D - j) /
@@ -513,9 +530,9 @@ class LagrangeDelay(EffectBlock):
     whose linear interpolation averages neighbouring samples (at half a sample it is a
     two-sample moving average, a low-pass), this one is within 1 % of an exact delay
     (magnitude and phase) up to a tenth of the sample rate, where linear interpolation is off
-    by up to 5 %: the reading of a band-limited output a fraction of a
-    sample late, e.g. an input and an output channel sampled one after the other by a
-    multiplexed ADC, or a digital fractional-delay filter.
+    by up to 5 %: the reading of a band-limited output a fraction of a sample late, e.g. an
+    input and an output channel sampled one after the other by a multiplexed ADC, or a
+    digital fractional-delay filter.
 
     Parameters
     ----------
@@ -524,34 +541,13 @@ class LagrangeDelay(EffectBlock):
 
     """
 
-    kind = "delay"
-    side = "output"
-    PARAMS = (("tau", "s"),)
-    DOMAIN = {"tau": ">=0"}
+    interpolation = "lagrange"
 
-    def _derive(self) -> None:
-        d = self._params["tau"] / self.dt
-        self._m = max(0, int(math.floor(d)) - 1)
-        frac = d - self._m
+    def _taps(self, d: float) -> tuple[int, Array]:
+        m = max(0, int(math.floor(d)) - 1)
         ks = range(4)
-        self._h = np.array(
-            [math.prod((frac - j) / (k - j) for j in ks if j != k) for k in ks], dtype=float
-        )
-        self._buf = np.zeros(self._m + 3)
-
-    def reset(self, x0: float) -> float:
-        """Buffer filled with ``x0``; returns ``x0`` (the taps sum to 1)."""
-        x0 = _finite(self.kind, "x0", x0)
-        self._buf = np.full(self._m + 3, x0)
-        return x0
-
-    def _run(self, x: Array) -> Array:
-        full = np.concatenate([self._buf, x])
-        y = np.zeros(x.size)
-        for k, h in enumerate(self._h):  # full[3 - k + t] is x[t - M - k]
-            y += h * full[3 - k : 3 - k + x.size]
-        self._buf = full[-(self._m + 3) :]
-        return y
+        h = [math.prod((d - m - j) / (k - j) for j in ks if j != k) for k in ks]
+        return m, np.array(h, dtype=float)
 
 
 class FirstOrderOutputLag(_LinearFilter):
