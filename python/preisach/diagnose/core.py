@@ -612,6 +612,16 @@ def _peak_to_peak(ctx: Context, curves: Sequence[np.ndarray]) -> dict[str, Any]:
     }
 
 
+def _fine_rmse(check: dict[str, Any], gain: float, sigma: float) -> tuple[float, float]:
+    """Return the fine classical model's held-out RMSE (V) without and with what it found.
+
+    ``check`` is the resolution check's report; ``gain`` what the finding removes from the
+    held-out mean-square error, in noise variances (``sigma``, V).
+    """
+    before = float(check["heldout_rmse"])
+    return before, math.sqrt(max(before**2 - gain * sigma**2, 0.0))
+
+
 def _wander_drift(
     ctx: Context, sel: Selection, motion: HoldMotion, sigma: float, alpha: float
 ) -> EffectReport | None:
@@ -694,8 +704,7 @@ def _classical_change(
     creep = motion.follows_t >= HOLD_FOLLOWS_T
     gain = float(check["drift"]["gain_noise_variances"])
     p = float(check["drift"]["p"])
-    before = float(check["heldout_rmse"])
-    after = math.sqrt(max(before**2 - gain * sigma**2, 0.0))
+    before, after = _fine_rmse(check, gain, sigma)
     diag = list(ctx.diag)
     size = _peak_to_peak(ctx, curves)
     amount = amount_text(size["value"], ctx.output_unit, ".2g")
@@ -758,8 +767,7 @@ def _classical_curve(
     """
     oc = check["output_curve"]
     gain, p = float(oc["gain_noise_variances"]), float(oc["p"])
-    before = float(check["heldout_rmse"])
-    after = math.sqrt(max(before**2 - gain * sigma**2, 0.0))
+    before, after = _fine_rmse(check, gain, sigma)
 
     def height(d: float) -> float:  # a minor loop's height at output level d, relative
         slope = sum(k * float(c) * d ** (k - 1) for k, c in zip(oc["powers"], oc["coefficients"]))
