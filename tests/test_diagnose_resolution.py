@@ -18,7 +18,7 @@ from preisach.diagnose.core import _classical_change
 from preisach.diagnose.data import prepare_recordings
 from preisach.diagnose.holds import HoldMotion
 from preisach.diagnose.scoring import fine_system, unresolved_start, unvisited_bound
-from preisach.diagnose.selection import DRIFT_BEYOND_CLASSICAL, resolution_check
+from preisach.diagnose.selection import RESOLUTION_BEYOND_CLASSICAL, resolution_check
 from preisach.identify import identify_fod
 from preisach.waveforms import fod_sweep, legs
 
@@ -72,7 +72,7 @@ def test_a_slow_drift_beyond_the_fine_classical_model(swing):
     assert drift is not None, chk["statement"]  # the fine classical model is within the bound
     assert (curves is not None) == bool(swing)  # its drift curves, when they count
     if swing:
-        assert drift["gain_noise_variances"] >= DRIFT_BEYOND_CLASSICAL, drift
+        assert drift["gain_noise_variances"] >= RESOLUTION_BEYOND_CLASSICAL, drift
         # the swing is about 4 noise variances, less each recording's offset; a known state
         # with the running-range freedom left only 0.11 of it to the drift (1.08 without)
         assert drift["gain_noise_variances"] >= 0.5, drift
@@ -80,7 +80,7 @@ def test_a_slow_drift_beyond_the_fine_classical_model(swing):
         assert not chk["consistent"], chk["statement"]
         assert "drift in time" in chk["statement"]
     else:
-        assert drift["gain_noise_variances"] < DRIFT_BEYOND_CLASSICAL, drift
+        assert drift["gain_noise_variances"] < RESOLUTION_BEYOND_CLASSICAL, drift
         assert chk["consistent"], chk["statement"]
         assert "identify on a finer grid" in chk["statement"]  # what to do about it
 
@@ -105,7 +105,7 @@ def test_an_unknown_initial_state_has_only_the_unvisited_relays_freedom(swing):
         assert drift["p"] < 0.01, drift
         assert not chk["consistent"], chk["statement"]
     else:
-        assert drift["gain_noise_variances"] < DRIFT_BEYOND_CLASSICAL, drift
+        assert drift["gain_noise_variances"] < RESOLUTION_BEYOND_CLASSICAL, drift
         assert chk["consistent"], chk["statement"]
 
 

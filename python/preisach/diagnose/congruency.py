@@ -42,14 +42,9 @@ from numpy.typing import NDArray
 from .context import Chain, Context
 from .scoring import BeyondClassical, beyond_classical
 
-__all__ = ["CURVE_BEYOND_CLASSICAL", "OutputCurveCheck", "output_curve_check", "output_level"]
+__all__ = ["OutputCurveCheck", "output_curve_check", "output_level"]
 
 Array = NDArray[np.float64]
-
-#: held-out gain (noise variances) a static output curve must add to the fine classical
-#: model, with p below the selection's alpha, before the residual is called more than the
-#: base's resolution (the bar of the drift's test, ``selection.DRIFT_BEYOND_CLASSICAL``)
-CURVE_BEYOND_CLASSICAL = 0.1
 
 
 @dataclass

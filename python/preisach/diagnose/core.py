@@ -19,7 +19,6 @@ from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
 from .candidates import Candidate, DriftCandidate
-from .congruency import CURVE_BEYOND_CLASSICAL
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
@@ -43,7 +42,7 @@ from .report import (
 )
 from .scoring import sign_flip_p
 from .selection import (
-    DRIFT_BEYOND_CLASSICAL,
+    RESOLUTION_BEYOND_CLASSICAL,
     GridChoice,
     Selection,
     StepResult,
@@ -736,7 +735,7 @@ def _classical_change(
             f"states predicts interleaved {1e3 * check['stretch_s']:.0f} ms held-out stretches "
             f"at {check['ratio']:.3g} x the noise; a slow drift per recording adds "
             f"{gain:.2g} x the noise variance to it (p = {p:.2g}; bar "
-            f"{DRIFT_BEYOND_CLASSICAL:g}), which no classical model with any initial states "
+            f"{RESOLUTION_BEYOND_CLASSICAL:g}), which no classical model with any initial states "
             f"makes; within {motion.n_pieces} input holds the residual's motion on the moves "
             f"into them has t = {motion.follows_t:.2g} (bar {HOLD_FOLLOWS_T:g}): {why}"
         ),
@@ -756,7 +755,7 @@ def _classical_curve(
     When nothing was kept, the fine classical model of the resolution check predicts
     interleaved stretches within the noise bound, and a static curve of the output adds
     clearly to it (:func:`~preisach.diagnose.congruency.output_curve_check`, the bar
-    :data:`~preisach.diagnose.congruency.CURVE_BEYOND_CLASSICAL`): minor loops change their
+    :data:`~preisach.diagnose.selection.RESOLUTION_BEYOND_CLASSICAL`): minor loops change their
     height with the output level, which no classical (congruent) model does.  The
     candidates' fits could not show it against the base's resolution (blind seed-21 case
     006, a non-congruent device: 0.14 noise variances beyond the fine model, p = 0.0002,
@@ -791,7 +790,7 @@ def _classical_curve(
             f"states predicts interleaved {1e3 * check['stretch_s']:.0f} ms held-out stretches "
             f"at {check['ratio']:.3g} x the noise; a static curve of the output (powers "
             f"{', '.join(str(k) for k in oc['powers'])} of its level) adds {gain:.2g} x the "
-            f"noise variance to it (p = {p:.2g}; bar {CURVE_BEYOND_CLASSICAL:g}), which no "
+            f"noise variance to it (p = {p:.2g}; bar {RESOLUTION_BEYOND_CLASSICAL:g}), which no "
             "classical model makes; too small against the model's resolution for a fit on "
             "other time blocks to show: identify on a finer grid of reversal levels so that "
             "it stands out"
@@ -902,11 +901,13 @@ def _report(
     )
     ratio = rmse_after / sigma_hat if sigma_hat > 0 else float("inf")
     consistent = bool(ratio <= noise_ratio)
-    # nothing kept and above the bound: is the residual the base's resolution? (nulls owner)
+    # nothing kept: is the residual the base's resolution, and is anything beyond the fine
+    # classical model (a curve of the output, a drift) even when the base is within the bound?
     check = None
     curves = None  # of the change the resolution check found beyond the fine model
-    if do_refit and not (names or consistent):
-        check, curves = resolution_check(ctx, sigma_hat, noise_ratio)
+    base_within = consistent
+    if do_refit and not names:
+        check, curves = resolution_check(ctx, sigma_hat, noise_ratio, base_within=base_within)
         consistent = bool(check["consistent"])
     # nothing kept: the holds must be still too (no classical model moves while the input
     # holds, whatever its resolution; motion there is evidence however small the RMSE)
@@ -920,7 +921,7 @@ def _report(
             if drift is not None:
                 effects = [drift]
         if check is not None and curves is not None and effects is final.effects:
-            if check["drift"] is None:  # the output curve made it more than the resolution
+            if check["found"] == "output_curve":  # more than the resolution: loop heights
                 effects = [_classical_curve(ctx, check, curves, sigma_hat)]
             else:
                 change = _classical_change(ctx, check, curves, motion, sigma_hat)
@@ -949,8 +950,8 @@ def _report(
     ]
     if grid is not None and grid["changed"]:
         notes.append(grid["statement"])
-    if noise_test["classical"] is not None:
-        notes.append(noise_test["classical"]["statement"])
+    if check is not None and not (base_within and consistent):
+        notes.append(check["statement"])
     start_note = _unknown_start_note(ctx, steps, names)
     if start_note:
         notes.append(start_note)
