@@ -41,6 +41,22 @@ def _context(stiffening: float) -> tuple[Context, float]:
     return ctx, 1e-3
 
 
+def _diagnose(stiffening: float):
+    """Diagnose the device's loops with a delay as the only candidate (it cannot make them)."""
+    from preisach.diagnose import diagnose
+
+    ctx, _ = _context(stiffening)
+    ident = [r for r in ctx.recs if r.ident]
+    rec = next(r for r in ctx.recs if not r.ident)
+    return diagnose(
+        ctx.model,
+        [Recording.from_arrays(t=rec.t, u=rec.u, y=rec.y)],
+        identification=[Recording.from_arrays(t=r.t, u=r.u, y=r.y) for r in ident],
+        candidates=["delay"],
+        progress=False,
+    )
+
+
 @pytest.mark.parametrize("stiffening", [0.0, 0.2])
 def test_output_curve_beyond_the_fine_classical_model(stiffening):
     """A product-model device is not consistent with the fine classical model; a classical one is.
@@ -72,18 +88,7 @@ def test_loops_that_shrink_at_high_strain_are_named_from_the_fine_model():
     device's are.  Fails when that finding is left ``unexplained``, or the heights come out
     the wrong way round.
     """
-    from preisach.diagnose import diagnose
-
-    ctx, _ = _context(0.2)
-    ident = [r for r in ctx.recs if r.ident]
-    rec = next(r for r in ctx.recs if not r.ident)
-    rep = diagnose(
-        ctx.model,
-        [Recording.from_arrays(t=rec.t, u=rec.u, y=rec.y)],
-        identification=[Recording.from_arrays(t=r.t, u=r.u, y=r.y) for r in ident],
-        candidates=["delay"],
-        progress=False,
-    )
+    rep = _diagnose(0.2)
     assert rep.noise_test["classical"] is not None, rep.summary()
     assert rep.verdict == "non_congruence", rep.summary()
     (eff,) = rep.effects
@@ -101,18 +106,7 @@ def test_a_small_stiffening_the_refit_absorbs_is_still_named():
     still tested and named.  Fails when the beyond-classical tests are skipped for a base
     within the bound, or their bar goes back above what such a device adds.
     """
-    from preisach.diagnose import diagnose
-
-    ctx, _ = _context(0.03)
-    ident = [r for r in ctx.recs if r.ident]
-    rec = next(r for r in ctx.recs if not r.ident)
-    rep = diagnose(
-        ctx.model,
-        [Recording.from_arrays(t=rec.t, u=rec.u, y=rec.y)],
-        identification=[Recording.from_arrays(t=r.t, u=r.u, y=r.y) for r in ident],
-        candidates=["delay"],
-        progress=False,
-    )
+    rep = _diagnose(0.03)
     nt = rep.noise_test
     assert nt["ratio"] <= nt["threshold"], rep.summary()  # the refit absorbed the rest
     curve = nt["classical"]["output_curve"]
