@@ -175,6 +175,12 @@ def test_a_start_up_step_from_an_unknown_state_is_not_scored_by_the_fine_check()
     assert marked.sum() <= 40  # a few stretches of the noise reaching new extremes at most
     slow = np.concatenate([rest, np.linspace(0.0, -4.4, 2000)])
     assert not unresolved_start(slow, dt, stretch, 16).any()
+    # the same step two samples earlier: the stretch before it holds only its first 0.88 V,
+    # less than a knot interval (1.5 V), and interpolates toward a knot only the move
+    # reaches - marked too (blind seed-24 case 015: 9 x the noise there, 26 x with a drift)
+    early = np.concatenate([rest[:-2], ramp, np.full(102, -4.4), noise])
+    marked = unresolved_start(early, dt, stretch, 16)
+    assert marked[260:280].all() and not marked[:260].any() and not marked[280:400].any()
     # the fine check leaves them out of both folds: a 4 ms step from 0 V to -100 V, unknown
     # state (the 0.1 s step of the other tests grows the range by less than a knot per stretch)
     for lead, out in ((0.004, True), (0.1, False)):
