@@ -5,8 +5,39 @@ Written from physical descriptions only (see README.md next to this file).
 Only numpy and scipy are used.
 
 Usage:
-    python3 generator.py OUTDIR --cases-per-kind N --seed S
+    python3 generator.py OUTDIR --cases-per-kind N --seed S [--cml]
     python3 generator.py --self-test
+
+--cml  adds one more experiment file per case, expN_cml.csv (N = highest
+       existing experiment number + 1): a congruent-minor-loop (CML) test
+       (Mayergoyz congruency property, thesis sec. 3.2.2 / Fig. 3.13).  The same
+       minor loop between two inputs `low` < `high` is traversed three times,
+       each reached through a different history so that the output sits at a
+       different level:
+         0 -> neg (negative end) -> high -> low -> high                 loop A
+           -> peak (well above high) -> low -> high -> low              loop B
+           -> trough (between neg and low) -> high -> low -> high       loop C
+       (levels: A lowest, C between, B highest).  All low<->high legs have the
+       same duration and shape (triangle or half-cosine, 0.6-1 Hz) and every
+       reversal and loop end has the same short hold (30-200 ms); the record
+       is typically 9-15 s long.  low/high/peak/trough are drawn per case
+       (loop span 15-50 % of the input range, at varying positions in
+       [-7, 7] V, redrawn until the device's Preisach density puts loops A and
+       B >= 3 % of the output range apart if possible; the trough is set so that
+       loop C lies 35-65 % of the way from A to B; see design_cml).
+       The file is recorded AFTER the other experiments of the case (a further
+       gap, then the CML record, in the same continuous session: same device,
+       effects, memory, creep/filter states and slow drifts, same 1 kHz sampling,
+       noise level, quantisation and command shaping).  Its design and noise
+       come from a separate random stream and the effect strengths stay
+       calibrated on the original experiments only (ratio_experiments* do not
+       include it), so every other file is byte-identical with and without
+       --cml.  The truth JSON then also lists the file in files,
+       ratio_per_file, ratio_per_file_per_effect, clipped_samples_per_file and
+       design["cml"] (design, designed reversal times/values, loop segments,
+       designed Preisach level offsets), and session_duration_s includes it;
+       all other truth entries are unchanged.  Without --cml the output is
+       unchanged.
 """
 import argparse
 import json
@@ -421,6 +452,134 @@ def build_session(design, rise_ms):
 
 
 # ----------------------------------------------------------------------------
+# Optional congruent-minor-loop (CML) experiment (--cml)
+# ----------------------------------------------------------------------------
+CML_TAG = 0x434D4C  # "CML": key of the separate random stream of the CML file
+
+
+def _rect(F, a1, a2, b1, b2):
+    """Preisach mass of alpha in (a1, a2], beta in (b1, b2]  (b2 <= a1)."""
+    return F(a2, b1) - F(a2, b2) - F(a1, b1) + F(a1, b2)
+
+
+def design_cml(rng, ev, min_off=0.06, tries=200):
+    """Random CML design: the minor loop low..high and the histories that
+    place the three traversals of it at different output levels.
+
+    Only hysterons with alpha > high and beta < low carry the history into the
+    loop, so the level offset between loop A (from `neg`) and loop B (from
+    `peak`) is 2*mass{high < alpha <= peak, neg < beta <= low} of the device's
+    Preisach density (normalised output units, range 2).  Like an experimenter
+    who looks at the device first, the generator redraws span/position/peak
+    (span log-uniform 3..10 V = 15..50 % of the input range, anywhere in
+    [-7, 7] V) until that offset is >= min_off (else it keeps the best draw),
+    and puts the trough so that loop C lies a random 35..65 % of the way from
+    loop A to loop B (trough at least 15 % of the span below low)."""
+    F = ev.F
+    best = None
+    for _ in range(tries):
+        w = float(np.exp(rng.uniform(np.log(0.15), np.log(0.5)))) * (HI - LO)
+        low = float(rng.uniform(-7.0, 7.0 - w))
+        high = low + w
+        neg = float(rng.uniform(-9.8, -9.0))                  # negative end
+        peak = high + float(rng.uniform(0.5, 1.0)) * (9.6 - high)  # well above high
+        off = 2.0 * _rect(F, high, peak, neg, low)
+        if best is None or off > best[0]:
+            best = (off, low, high, neg, peak)
+        if off >= min_off:
+            break
+    off, low, high, neg, peak = best
+    frac = float(rng.uniform(0.35, 0.65))
+    a, b = neg, low
+    for _ in range(60):  # bisection: offset(C - A) = frac * offset(B - A)
+        mid = 0.5 * (a + b)
+        if 2.0 * _rect(F, high, peak, neg, mid) < frac * off:
+            a = mid
+        else:
+            b = mid
+    trough = min(0.5 * (a + b), low - 0.15 * (high - low))
+    offCA = 2.0 * _rect(F, high, peak, neg, trough)
+    d = {"type": "cml", "low": low, "high": high, "peak": peak, "trough": trough,
+         "neg": neg, "shape": str(rng.choice(["triangle", "cosine"])),
+         "leg_s": float(0.5 / rng.uniform(0.6, 1.0)),      # low<->high leg
+         "hold_s": float(rng.uniform(0.03, 0.2)),          # at every reversal
+         "pre": float(rng.uniform(0.2, 0.5)), "post": float(rng.uniform(0.3, 0.8)),
+         "level_offsets_preisach": {"B-A": off, "C-A": offCA, "B-C": off - offCA}}
+    return d
+
+
+def _cml_leg(b, to, T, shape):
+    a = b.v[-1]
+    n = max(1, int(round(T / DT)))
+    if shape == "cosine":
+        x = a + (to - a) * 0.5 * (1.0 - np.cos(np.pi * np.arange(1, n + 1) / n))
+    else:
+        x = np.linspace(a, to, n + 1)[1:]
+    x[-1] = to
+    b.extend(x)
+
+
+def build_cml(d):
+    """Input of the CML experiment; returns (u, marks) where marks lists the
+    designed reversals [time in the file (s), label, value] (plus the
+    non-reversal points high_pass / low_pass = ends of loops A / B, where the
+    input holds and then goes on, and high_end) and the three loop
+    segments [start, end] (s) of the low<->high traversals (designed times,
+    i.e. before the per-case command shaping of a few ms)."""
+    lo_, hi_, w, Tl, hold = d["low"], d["high"], d["high"] - d["low"], d["leg_s"], d["hold_s"]
+    b = Builder(0.0)
+    b.hold(d["pre"])
+    rev, loops = [], {}
+
+    def hist(to):  # history leg: longer for larger spans (<= 2 loop legs)
+        span = abs(to - b.v[-1])
+        _cml_leg(b, to, Tl * min(max(math.sqrt(span / w), 1.0), 2.0), d["shape"])
+
+    def loop(to):
+        _cml_leg(b, to, Tl, d["shape"])
+
+    def mark(label, hold_it=True):
+        rev.append([len(b.v) - 2, label, float(b.v[-1])])
+        if hold_it:
+            b.hold(hold)
+
+    def here():
+        return len(b.v) - 2
+    hist(d["neg"]); mark("neg")
+    hist(hi_); mark("high")
+    sA = here(); loop(lo_); mark("low"); loop(hi_); loops["A"] = [sA, here()]
+    mark("high_pass")                # loop A closes here; the input goes on up
+    hist(d["peak"]); mark("peak")
+    hist(lo_); mark("low")
+    sB = here(); loop(hi_); mark("high"); loop(lo_); loops["B"] = [sB, here()]
+    mark("low_pass")                 # loop B closes here; the input goes on down
+    hist(d["trough"]); mark("trough")
+    hist(hi_); mark("high")
+    sC = here(); loop(lo_); mark("low"); loop(hi_); loops["C"] = [sC, here()]
+    mark("high_end", hold_it=False)  # end of loop C (post hold follows)
+    b.hold(d["post"])
+    u = np.clip(b.array(), -10.0, 10.0)
+    marks = {"reversals": [[i * DT, lab, v] for i, lab, v in rev],
+             "loops_s": {k: [a * DT, e * DT] for k, (a, e) in loops.items()},
+             "loop_order_by_level": ["A", "C", "B"]}
+    return u, marks
+
+
+def extend_session_cml(u, d, rise_ms, name):
+    """Continue the session u (which ends at rest at 0 V) by a further gap of
+    d['gap'] s at 0 V, the CML record and the usual return to 0 V."""
+    L = int(round(rise_ms)) + 1 if rise_ms > 0 else 1
+    g = np.zeros(int(round(d["gap"] / DT)))
+    uc, marks = build_cml(d)
+    uc = smooth_rise(uc, L)
+    b = Builder(uc[-1])
+    b.ramp(0.0, 20.0)
+    b.hold(0.5)
+    start = len(u) + len(g)
+    return np.concatenate([u, g, uc, b.array()]), (name, start, len(uc)), marks
+
+
+# ----------------------------------------------------------------------------
 # Effects
 # ----------------------------------------------------------------------------
 def lp1(x, tau, x0=None):
@@ -535,7 +694,12 @@ def apply_delay(y, form, p):
     raise ValueError(form)
 
 
-def drift_shape(form, p, n):
+def drift_shape(form, p, n, n_ext=None):
+    """Unit-RMS drift realisation over n samples.  With n_ext (--cml) the same
+    realisation is continued to n_ext > n samples (later session time); all
+    normalisations still refer to the first n samples, so x[:n] is unchanged."""
+    if n_ext is not None:
+        return _drift_shape_ext(form, p, n, n_ext)
     rng = np.random.default_rng(p["seed"])
     t = np.arange(n) * DT
     if form == "thermal_warmup":
@@ -559,8 +723,34 @@ def drift_shape(form, p, n):
     return x / np.sqrt(np.mean(x * x))
 
 
+def _drift_shape_ext(form, p, n, n_ext):
+    rng = np.random.default_rng(p["seed"])
+    t = np.arange(n_ext) * DT
+    if form == "thermal_warmup":
+        x = (1.0 - np.exp(-t / p["tau_w"])) + p["slope"] * t / ((n - 1) * DT)
+    elif form == "random_walk":
+        x = np.cumsum(rng.standard_normal(n_ext))
+        x = lp1(x, p["tau_s"], 0.0)
+    elif form == "flicker_1f":
+        N = 1 << int(math.ceil(math.log2(n)))
+        f = np.fft.rfftfreq(N, DT)
+        amp = np.zeros_like(f)
+        amp[1:] = f[1:] ** (-p["gamma"] / 2.0) / np.sqrt(1.0 + (f[1:] / p["f_c"]) ** 4)
+        X = amp * (rng.standard_normal(len(f)) + 1j * rng.standard_normal(len(f)))
+        x = np.fft.irfft(X, N)[np.arange(n_ext) % N]  # periodic continuation
+    elif form == "hvac_cycle":
+        w = 2 * np.pi / p["period"]
+        x = np.sin(w * t + p["phase"]) + p["h2"] * np.sin(2 * w * t + 2 * p["phase"] + 1.0)
+    else:
+        raise ValueError(form)
+    x = x - x[0]
+    return x / np.sqrt(np.mean(x[:n] * x[:n]))
+
+
 class Case:
-    """Holds the session input, base model and a cache of base outputs."""
+    """Holds the session input, base model and a cache of base outputs.
+    n_norm (None by default) = length of the original session when u is the
+    session extended by the --cml record (drift normalisation)."""
 
     def __init__(self, base, u, files):
         self.base = base
@@ -572,6 +762,7 @@ class Case:
         for name, s, n in files:
             if name != "id.csv":
                 self.mask[s:s + n] = True
+        self.n_norm = None
 
     def hyst(self, v, K=None):
         P = Preisach(self.ev)
@@ -647,7 +838,10 @@ class Case:
         # --- sensor drift --------------------------------------------------
         for f in FORMS["drift"]:
             if f in fm:
-                y = y + fm[f]["s"] * drift_shape(f, fm[f]["p"], len(u))
+                if self.n_norm is None:
+                    y = y + fm[f]["s"] * drift_shape(f, fm[f]["p"], len(u))
+                else:
+                    y = y + fm[f]["s"] * drift_shape(f, fm[f]["p"], self.n_norm, len(u))
         return y
 
 
@@ -876,7 +1070,8 @@ def write_csv(path, u, y):
 
 
 def make_case(args):
-    idx, kinds, forms, seed, outdir = args
+    idx, kinds, forms, seed, outdir = args[:5]
+    cml = bool(args[5]) if len(args) > 5 else False
     t0 = time.time()
     rng = np.random.default_rng(seed)
     base = draw_base(rng, forms)
@@ -924,6 +1119,32 @@ def make_case(args):
         per_file[name] = rms(diff[sl]) / sigma
         per_file_eff[name] = {f: rms(d[sl]) / sigma for f, d in single.items()}
         clipped[name] = int(np.sum(np.abs(ynoisy[sl]) >= 10.0 - QSTEP))
+    files_out, n_session = files, len(u)
+    if cml:
+        # separate random stream: nothing above (and no other file) changes
+        crng = np.random.default_rng([seed, CML_TAG])
+        cd = design_cml(crng, case.ev)
+        cd["gap"] = float(crng.uniform(2.0, 6.0))
+        cnoise = np.random.default_rng(int(crng.integers(2 ** 31)))
+        cname = "exp%d_cml.csv" % (len(design["exps"]) + 1)
+        ux, cfile, marks = extend_session_cml(u, cd, rise_ms, cname)
+        cd.update(marks)
+        design["cml"] = cd
+        casex = Case(base, ux, files + [cfile])
+        casex.n_norm = len(u)  # drifts continue the same realisation
+        ybx = casex.simulate([])
+        yfx = casex.simulate(effects)
+        dx = yfx - ybx
+        _, s0, n = cfile
+        sl = slice(s0, s0 + n)
+        yn = yfx[sl] + sigma * cnoise.standard_normal(n)
+        ym = np.clip(np.round(yn / QSTEP), -2 ** 13, 2 ** 13 - 1) * QSTEP
+        write_csv(os.path.join(cdir, cname), ux[sl], ym)
+        per_file[cname] = rms(dx[sl]) / sigma
+        per_file_eff[cname] = {e["form"]: rms((casex.simulate([e]) - ybx)[sl]) / sigma
+                               if len(effects) > 1 else per_file[cname] for e in effects}
+        clipped[cname] = int(np.sum(np.abs(yn) >= 10.0 - QSTEP))
+        files_out, n_session = files + [cfile], len(ux)
     m = case.mask
     truth = {
         "case": "case_%03d" % idx,
@@ -940,8 +1161,8 @@ def make_case(args):
         "base": base, "step_rise_ms": rise_ms,
         "design": design,
         "files": [{"name": nm, "session_start_s": s0 * DT, "duration_s": n * DT}
-                  for nm, s0, n in files],
-        "session_duration_s": len(u) * DT,
+                  for nm, s0, n in files_out],
+        "session_duration_s": n_session * DT,
         "gen_seconds": time.time() - t0,
     }
     with open(os.path.join(outdir, "truth", "case_%03d.json" % idx), "w") as fh:
@@ -966,13 +1187,15 @@ def case_plan(n_per_kind, rng):
     return [specs[i] for i in order]
 
 
-def generate(outdir, n_per_kind, seed, workers):
+def generate(outdir, n_per_kind, seed, workers, cml=False):
     os.makedirs(os.path.join(outdir, "truth"), exist_ok=True)
     rng = np.random.default_rng(seed)
     plan = case_plan(n_per_kind, rng)
     seeds = np.random.SeedSequence(seed).spawn(len(plan))
     jobs = [(i, ks, fs, int(seeds[i].generate_state(1)[0]), outdir)
             for i, (ks, fs) in enumerate(plan)]
+    if cml:
+        jobs = [j + (True,) for j in jobs]
     t0 = time.time()
     if workers > 1:
         from multiprocessing import Pool
@@ -986,6 +1209,8 @@ def generate(outdir, n_per_kind, seed, workers):
                           "forms": [f["form"] for f in r["forms"]],
                           "ratio_experiments": r["ratio_experiments"],
                           "noise_rms": r["noise_rms"]} for r in res]}
+    if cml:
+        summary["cml"] = True
     with open(os.path.join(outdir, "truth", "summary.json"), "w") as fh:
         json.dump(summary, fh, indent=1)
     for r in res:
@@ -1084,18 +1309,23 @@ def _ramps(pts, rate=40.0):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("outdir", nargs="?")
     ap.add_argument("--cases-per-kind", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--self-test", action="store_true")
+    ap.add_argument("--cml", action="store_true",
+                    help="add a congruent-minor-loop experiment expN_cml.csv to every "
+                         "case, recorded after the other experiments (other files "
+                         "unchanged; see the module docstring)")
     a = ap.parse_args()
     if a.self_test:
         sys.exit(0 if self_test() else 1)
     if not a.outdir:
         ap.error("OUTDIR required")
-    generate(a.outdir, a.cases_per_kind, a.seed, a.workers)
+    generate(a.outdir, a.cases_per_kind, a.seed, a.workers, cml=a.cml)
 
 
 if __name__ == "__main__":
