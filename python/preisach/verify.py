@@ -53,11 +53,14 @@ __all__ = [
     "Comparison",
     "CongruencyResult",
     "LoopPair",
+    "MinorLoop",
     "Prediction",
     "VerificationRow",
     "VerificationTable",
     "WipingOutResult",
+    "comparable_loops",
     "congruency_metric",
+    "minor_loops",
     "predict",
     "verify",
     "wiping_out_metric",
@@ -803,12 +806,75 @@ class CongruencyResult(_PropertyTest):
 
 
 @dataclass
-class _Loop:
+class MinorLoop:
+    """A minor loop found by :func:`minor_loops`: sample ranges of its two branches.
+
+    Attributes
+    ----------
+    low, high : float
+        Its input extrema (V).
+    t0 : float
+        Time (s) of its first reversal.
+    rise, fall : (int, int)
+        Sample ranges ``[i0, i1]`` of the rising branch ``low -> high`` and of the falling
+        branch ``high -> low``.
+
+    """
+
     low: float
     high: float
     t0: float
-    rise: tuple[int, int]  # sample range of the rising branch low -> high
-    fall: tuple[int, int]  # sample range of the falling branch high -> low
+    rise: tuple[int, int]
+    fall: tuple[int, int]
+
+
+def minor_loops(
+    t: NDArray[np.float64], u: NDArray[np.float64], reversal_tol: float
+) -> list[MinorLoop]:
+    """Find the minor loops of an input (thesis §3.2.2).
+
+    A minor loop is a reversal at one input extreme, a branch to the other extreme and a
+    branch back through the first (``high -> low -> high`` or ``low -> high -> low``; the
+    second branch may continue beyond, and the loop closes where it passes the first extreme
+    again).  Reversals count when the input moves back by more than ``reversal_tol`` (V).
+    """
+    idx, kind = _turning_points(u, reversal_tol)
+    loops: list[MinorLoop] = []
+    for q in range(2, idx.size - 1):  # P_{q-1} and P_q both reversals, P_{q+1} follows
+        k0, k1, k2 = int(idx[q - 1]), int(idx[q]), int(idx[q + 1])
+        first, turn, nxt = u[k0], u[k1], u[k2]
+        if kind[q] < 0:  # high (k0) -> low (k1) -> back up through high
+            if nxt < first - reversal_tol:
+                continue
+            lv = min(first, nxt)
+            back = k1 + int(np.argmax(np.maximum.accumulate(u[k1 : k2 + 1]) >= lv))
+            loops.append(MinorLoop(float(turn), float(first), float(t[k0]), (k1, back), (k0, k1)))
+        else:  # low (k0) -> high (k1) -> back down through low
+            if nxt > first + reversal_tol:
+                continue
+            lv = max(first, nxt)
+            back = k1 + int(np.argmax(np.minimum.accumulate(u[k1 : k2 + 1]) <= lv))
+            loops.append(MinorLoop(float(first), float(turn), float(t[k0]), (k0, k1), (k1, back)))
+    return loops
+
+
+def comparable_loops(loops: Sequence[MinorLoop], match_tol: float) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)``, ``i < j``, of loops whose extrema agree within ``match_tol`` (V).
+
+    Each loop is paired with the first earlier loop between the same extrema (whose inner
+    extrema still leave a range between them).  For a Preisach system such loops are
+    congruent: equal up to a vertical shift (Mayergoyz's congruency property).
+    """
+    pairs = []
+    for j, B in enumerate(loops):
+        for i in range(j):
+            A = loops[i]
+            if abs(A.low - B.low) > match_tol or abs(A.high - B.high) > match_tol:
+                continue
+            if max(A.low, B.low) < min(A.high, B.high):
+                pairs.append((i, j))
+                break
+    return pairs
 
 
 def congruency_metric(
@@ -865,47 +931,23 @@ def congruency_metric(
     if int(points) < 3:
         raise ValueError(f"points: need at least 3, got {points!r}")
     rng = _range(y, output_range)
-    idx, kind = _turning_points(u, rtol)
-    loops: list[_Loop] = []
-    for q in range(2, idx.size - 1):  # P_{q-1} and P_q both reversals, P_{q+1} follows
-        k0, k1, k2 = int(idx[q - 1]), int(idx[q]), int(idx[q + 1])
-        first, turn, nxt = u[k0], u[k1], u[k2]
-        if kind[q] < 0:  # high (k0) -> low (k1) -> back up through high
-            if nxt < first - rtol:
-                continue
-            lv = min(first, nxt)
-            back = k1 + int(np.argmax(np.maximum.accumulate(u[k1 : k2 + 1]) >= lv))
-            loops.append(_Loop(float(turn), float(first), float(t[k0]), (k1, back), (k0, k1)))
-        else:  # low (k0) -> high (k1) -> back down through low
-            if nxt > first + rtol:
-                continue
-            lv = max(first, nxt)
-            back = k1 + int(np.argmax(np.minimum.accumulate(u[k1 : k2 + 1]) <= lv))
-            loops.append(_Loop(float(first), float(turn), float(t[k0]), (k0, k1), (k1, back)))
-    # each loop is compared with the first earlier loop between the same extrema
+    loops = minor_loops(t, u, rtol)
     pairs: list[LoopPair] = []
-    for j in range(len(loops)):
-        B = loops[j]
-        for i in range(j):
-            A = loops[i]
-            if abs(A.low - B.low) > mtol or abs(A.high - B.high) > mtol:
-                continue
-            lo, hi = max(A.low, B.low), min(A.high, B.high)
-            if not hi > lo:
-                continue
-            grid = np.linspace(lo, hi, int(points))
-            parts = []
-            for rising in (True, False):
-                ra = A.rise if rising else A.fall
-                rb = B.rise if rising else B.fall
-                d = _branch_read(u, y, rb[0], rb[1], grid, rising) - _branch_read(
-                    u, y, ra[0], ra[1], grid, rising
-                )
-                parts.append(d[np.isfinite(d)])
-            dd = np.concatenate(parts)
-            if dd.size < 2:
-                continue
-            shift = float(np.mean(dd))
-            pairs.append(LoopPair(lo, hi, A.t0, B.t0, shift, float(np.max(np.abs(dd - shift)))))
-            break
+    for i, j in comparable_loops(loops, mtol):
+        A, B = loops[i], loops[j]
+        lo, hi = max(A.low, B.low), min(A.high, B.high)
+        grid = np.linspace(lo, hi, int(points))
+        parts = []
+        for rising in (True, False):
+            ra = A.rise if rising else A.fall
+            rb = B.rise if rising else B.fall
+            d = _branch_read(u, y, rb[0], rb[1], grid, rising) - _branch_read(
+                u, y, ra[0], ra[1], grid, rising
+            )
+            parts.append(d[np.isfinite(d)])
+        dd = np.concatenate(parts)
+        if dd.size < 2:
+            continue
+        shift = float(np.mean(dd))
+        pairs.append(LoopPair(lo, hi, A.t0, B.t0, shift, float(np.max(np.abs(dd - shift)))))
     return CongruencyResult(pairs, len(loops), rng, tol_pct)

@@ -1,4 +1,4 @@
-"""Loops that scale with the output level: a test beyond the fine classical model.
+"""Loops that are not congruent: a test beyond the fine classical model, and one with no model.
 
 The classical Preisach model is *congruent* (Mayergoyz's congruency theorem): minor loops
 between the same two inputs have the same height wherever the output sits.  A device whose
@@ -28,21 +28,50 @@ sensor, separates them.  Measured on the blind dev sets (seeds 7-9, models from
 cases 0.27 (seed 9 case 018, p 0.001), 0.11 (seed 7 case 011), 0.04 (seed 8 case 001),
 0.02 or less on eight others - most non-congruence there is absorbed by the fine
 classical model, see docs/diagnosis.md.
+
+Where the recordings repeat a minor loop - the congruent-minor-loop (CML) experiment of thesis
+§3.2.2 runs one loop at two output levels - congruency is tested with no model at all
+(:func:`minor_loop_check`): the loops are read as splines of the input and must agree up to a
+vertical shift, which no refit of the weights can change.  Its power grows with how far
+apart the loops' output levels lie.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import interpolate, stats
 
+from ..verify import comparable_loops, minor_loops
 from .context import Chain, Context
 from .scoring import BeyondClassical, beyond_classical
 
-__all__ = ["OutputCurveCheck", "output_curve_check", "output_level"]
+__all__ = [
+    "LOOP_ALPHA",
+    "LOOP_MIN_SHAPE",
+    "LOOP_RATE_RATIO",
+    "LoopShape",
+    "MinorLoopCheck",
+    "OutputCurveCheck",
+    "loop_shapes",
+    "minor_loop_check",
+    "output_curve_check",
+    "output_level",
+]
+
+#: Level of the minor-loop test (:func:`minor_loop_check`): an F-test exact under congruency.
+LOOP_ALPHA = 0.001
+#: Smallest RMS shape difference (in noise standard deviations) it names.
+LOOP_MIN_SHAPE = 0.3
+#: Largest ratio of the durations of two loops' branches compared: loops run at other rates
+#: differ wherever the device is not quite rate-independent (blind seed-27 nulls: pairs of
+#: a multi-sine's loops at other rates and with inner reversals gave F 9-28).
+LOOP_RATE_RATIO = 1.2
 
 Array = NDArray[np.float64]
 
@@ -100,3 +129,236 @@ def output_curve_check(
     pw = tuple(int(k) for k in powers)
     res = beyond_classical(ctx, sigma, output_level(ctx, pw, identification), seed=seed)
     return OutputCurveCheck(**vars(res), powers=pw)
+
+
+@dataclass
+class LoopShape:
+    """Two minor loops between the same inputs compared by :func:`loop_shapes`.
+
+    ``rss_same``/``rss_own``: residual sums of squares (V^2) with one shape for both loops
+    plus a vertical shift, and with a shape of their own; ``q`` the parameters the second
+    adds, ``n`` the samples, ``k`` the second's parameters.  ``shape_rms`` (V): RMS of loop
+    B's shape minus loop A's beyond the shift, less what the noise alone makes of it (the
+    drop of the residual sum of squares beyond its expectation under congruency, ``q``
+    noise variances: about half of a shape difference ``d`` goes to each loop, so the drop
+    is ``n d^2 / 4``); ``level_a``/``level_b`` (V): the loops' mean outputs;
+    ``samples_b`` and ``difference`` (V): loop B's samples and its fitted shape minus A's.
+    """
+
+    low: float
+    high: float
+    t_a: float
+    t_b: float
+    level_a: float
+    level_b: float
+    rss_same: float
+    rss_own: float
+    q: int
+    n: int
+    k: int
+    shape_rms: float
+    samples_b: NDArray[np.int64]
+    difference: Array
+
+
+def _branch_samples(
+    u: Array, usable: NDArray[np.bool_], i0: int, i1: int, lo: float, hi: float
+) -> NDArray[np.int64]:
+    """Return the usable samples of branch ``[i0, i1]`` that move the input within [lo, hi]."""
+    k = np.arange(i0, i1 + 1, dtype=np.int64)
+    moving = np.r_[True, np.diff(u[k]) != 0]  # the samples of a hold add nothing
+    keep: NDArray[np.bool_] = moving & usable[k] & (u[k] >= lo) & (u[k] <= hi)
+    return k[keep]
+
+
+def _monotone(u: Array, i0: int, i1: int, direction: int) -> bool:
+    """Whether ``u[i0..i1]`` never moves against ``direction``.
+
+    An inner reversal, however small, starts a minor loop of its own inside the branch, and
+    two loops differ there.
+    """
+    return bool(np.all(direction * np.diff(u[i0 : i1 + 1]) >= 0.0))
+
+
+def _similar(a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Whether two branches take about as long (within :data:`LOOP_RATE_RATIO`)."""
+    na, nb = a[1] - a[0] + 1, b[1] - b[0] + 1
+    return bool(max(na, nb) <= LOOP_RATE_RATIO * min(na, nb))
+
+
+def loop_shapes(
+    t: Array,
+    u: Array,
+    e: Array,
+    usable: NDArray[np.bool_] | None = None,
+    *,
+    y: Array | None = None,
+    reversal_tol: float | None = None,
+    match_tol: float | None = None,
+    min_samples: int = 40,
+) -> list[LoopShape]:
+    """Compare every pair of minor loops between the same inputs (Mayergoyz's congruency).
+
+    ``t`` (s), ``u`` (V) and ``e`` (V): a recording's time, input and output, or its residual
+    against any classical Preisach model (whose own loops are congruent, so subtracting it
+    changes no shape difference; it only leaves less curvature to fit); ``y`` (V): the
+    measured output, for the loops' levels (default ``e``).  Loops come from
+    :func:`~preisach.verify.minor_loops` and :func:`~preisach.verify.comparable_loops`
+    (reversals counted beyond ``reversal_tol``, default 0.5 % of the input range; extrema
+    matched within ``match_tol``, default 1e-5 of it: a branch from another reversal value
+    is another first-order curve, so only loops between the same inputs compare - the
+    same loop repeated, as a CML experiment or a periodic input does).  Only loops whose
+    branches are monotone (no inner reversal at all) and take about as long
+    (:data:`LOOP_RATE_RATIO`) are compared.  Per pair, each branch (rising, falling) of each
+    loop is read as a cubic B-spline of the input over the loops' common range (one knot
+    interval per ``4 * min_samples`` samples of the shorter branch, 2 to 12), twice: one
+    spline per branch shared by both loops plus one vertical shift (a classical model's
+    loops differ by no more), and one spline per branch and loop.  Samples of input holds
+    are left out; pairs with fewer than ``min_samples`` samples on a branch are skipped.
+    """
+    t, u, e = (np.asarray(a, dtype=float) for a in (t, u, e))
+    level = e if y is None else np.asarray(y, dtype=float)
+    ok = np.ones(u.size, bool) if usable is None else np.asarray(usable, bool)
+    span = float(np.ptp(u)) if u.size else 0.0
+    if not span > 0:
+        return []
+    rtol = 0.005 * span if reversal_tol is None else float(reversal_tol)
+    mtol = 1e-5 * span if match_tol is None else float(match_tol)
+    loops = minor_loops(t, u, rtol)
+    out = []
+    for i, j in comparable_loops(loops, mtol):
+        A, B = loops[i], loops[j]
+        if not all(_monotone(u, *br, up) for L in (A, B) for br, up in ((L.rise, 1), (L.fall, -1))):
+            continue
+        if not (_similar(A.rise, B.rise) and _similar(A.fall, B.fall)):
+            continue
+        lo, hi = max(A.low, B.low), min(A.high, B.high)
+        parts = [_branch_samples(u, ok, *L.rise, lo, hi) for L in (A, B)] + [
+            _branch_samples(u, ok, *L.fall, lo, hi) for L in (A, B)
+        ]
+        m = min(p.size for p in parts)
+        if m < min_samples:
+            continue
+        n_int = int(np.clip(m // (4 * min_samples), 2, 12))
+        knots = np.r_[[lo] * 3, np.linspace(lo, hi, n_int + 1), [hi] * 3]
+        K = n_int + 3
+        bases = [
+            interpolate.BSpline.design_matrix(np.clip(u[p], lo, hi), knots, 3).toarray()
+            for p in parts
+        ]
+        target = np.concatenate([e[p] for p in parts])
+        n = target.size
+        # own: one spline per branch and loop (4 K); same: per branch (2 K) and a shift of B
+        own = np.zeros((n, 4 * K))
+        same = np.zeros((n, 2 * K + 1))
+        row = 0
+        for b, (Bm, p) in enumerate(zip(bases, parts)):
+            rows = slice(row, row + p.size)
+            own[rows, b * K : (b + 1) * K] = Bm
+            same[rows, (b // 2) * K : (b // 2 + 1) * K] = Bm
+            same[rows, -1] = float(b % 2)  # loop B
+            row += p.size
+        c_own, *_ = np.linalg.lstsq(own, target, rcond=None)
+        c_same, *_ = np.linalg.lstsq(same, target, rcond=None)
+        rss_own = float(np.sum((target - own @ c_own) ** 2))
+        rss_same = float(np.sum((target - same @ c_same) ** 2))
+        # B's shape minus A's beyond the shift, on B's samples of both branches
+        diffs = []
+        for b in (1, 3):
+            Bm = bases[b]
+            diffs.append(Bm @ (c_own[b * K : (b + 1) * K] - c_own[(b - 1) * K : b * K]))
+        d = np.concatenate(diffs)
+        d = d - d.mean()
+        loop_a = np.concatenate([parts[0], parts[2]])
+        loop_b = np.concatenate([parts[1], parts[3]])
+        q = 2 * K - 1
+        excess = rss_same - rss_own - q * rss_own / max(n - 4 * K, 1)
+        out.append(
+            LoopShape(
+                lo,
+                hi,
+                A.t0,
+                B.t0,
+                float(np.mean(level[loop_a])),
+                float(np.mean(level[loop_b])),
+                rss_same,
+                rss_own,
+                q,
+                n,
+                4 * K,
+                2.0 * math.sqrt(max(excess, 0.0) / n),
+                loop_b.astype(np.int64),
+                d,
+            )
+        )
+    return out
+
+
+@dataclass
+class MinorLoopCheck:
+    """Outcome of :func:`minor_loop_check`."""
+
+    pairs: list[tuple[int, LoopShape]]  # (recording index, pair)
+    F: float
+    dof: tuple[int, int]
+    p: float
+    shape_rms: float  # RMS (V) of the shape differences beyond the noise's, all pairs pooled
+    sigma: float  # the noise (V)
+
+    def passes(self, alpha: float = LOOP_ALPHA, min_shape: float = LOOP_MIN_SHAPE) -> bool:
+        """Whether the loops differ in shape at level ``alpha`` by ``min_shape`` noise SDs."""
+        return bool(self.pairs and self.p < alpha and self.shape_rms >= min_shape * self.sigma)
+
+    def largest(self) -> tuple[int, LoopShape]:
+        """Return the pair whose shapes differ most (recording index, pair)."""
+        return max(self.pairs, key=lambda ip: ip[1].shape_rms)
+
+    def curves(self, ctx: Context) -> list[Array]:
+        """Per recording: the shape differences (V) on loop B's samples, zeros elsewhere."""
+        out = [np.zeros(r.n) for r in ctx.recs]
+        for i, pr in self.pairs:
+            out[i][pr.samples_b] = pr.difference
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready fields."""
+        return {
+            "pairs": len(self.pairs),
+            "F": self.F if self.pairs else None,
+            "dof": list(self.dof),
+            "p": self.p,
+            "shape_rms": self.shape_rms,
+            "shape_noise_ratio": self.shape_rms / self.sigma if self.sigma > 0 else None,
+        }
+
+
+def minor_loop_check(ctx: Context, sigma: float) -> MinorLoopCheck:
+    """Test the diagnosis recordings' comparable minor loops for congruency.
+
+    Every classical Preisach model is congruent (Mayergoyz's theorem): minor loops between
+    the same two inputs are equal up to a vertical shift, whatever the history that led to
+    them and wherever the output sits.  A recording that holds two or more such loops - the
+    congruent-minor-loop (CML) experiment of thesis §3.2.2 repeats one loop at two output
+    levels - tests this directly, with no model fitted: :func:`loop_shapes` on each diagnosis
+    recording's residual against the given model (its usable samples), all pairs pooled in
+    one F-test of "one shape plus a shift" against "a shape per loop".  The F-test's
+    denominator is the residual about each loop's own spline, so it does not lean on
+    ``sigma`` (V); ``sigma`` only scales the size reported.
+    """
+    sims = ctx.predict(Chain(ctx.given))
+    pairs: list[tuple[int, LoopShape]] = []
+    for i in ctx.diag:
+        r = ctx.recs[i]
+        e = r.y - np.nan_to_num(sims[i])
+        pairs += [(i, pr) for pr in loop_shapes(r.t, r.u, e, r.usable, y=r.y)]
+    if not pairs:
+        return MinorLoopCheck([], float("nan"), (0, 0), 1.0, 0.0, float(sigma))
+    num = sum(pr.rss_same - pr.rss_own for _, pr in pairs)
+    q = sum(pr.q for _, pr in pairs)
+    den = sum(pr.rss_own for _, pr in pairs)
+    dof2 = sum(pr.n - pr.k for _, pr in pairs)
+    F = (num / q) / max(den / max(dof2, 1), 1e-300)
+    p = float(stats.f.sf(F, q, dof2))
+    n = sum(pr.n for _, pr in pairs)
+    rms = 2.0 * math.sqrt(max(num - q * den / max(dof2, 1), 0.0) / max(n, 1))
+    return MinorLoopCheck(pairs, float(F), (int(q), int(dof2)), p, rms, float(sigma))

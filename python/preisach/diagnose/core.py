@@ -19,6 +19,7 @@ from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
 from .candidates import Candidate, DriftCandidate
+from .congruency import LOOP_ALPHA, LOOP_MIN_SHAPE
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
@@ -806,6 +807,61 @@ def _classical_curve(
     )
 
 
+def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarray]) -> EffectReport:
+    """Name minor loops between the same inputs that differ in shape (non-congruence).
+
+    When nothing was kept, the fine classical model of the resolution check is within the
+    noise bound and neither a curve of the output nor a drift adds to it, the recordings'
+    comparable minor loops - the congruent-minor-loop experiment repeats one at two output
+    levels - are compared with no model at all
+    (:func:`~preisach.diagnose.congruency.minor_loop_check`): a classical Preisach model's
+    loops between the same inputs differ by a vertical shift only, however the weights are
+    refitted.  A refit that absorbs a non-congruence on every other experiment cannot hide
+    it there.  No block is added to the model (the held-out RMSE is the fine model's before
+    and after); ``curves`` (V, per recording) are the shape differences on the later loops.
+    """
+    lc = check["minor_loops"]
+    big = lc["largest"]
+    rmse = float(check["heldout_rmse"])
+    diag = list(ctx.diag)
+    unit = ctx.output_unit
+    return EffectReport(
+        name="non_congruence",
+        statement=(
+            f"minor loops between the same inputs are not congruent: the loop between "
+            f"{big['low']:.3g} and {big['high']:.3g} V in '{big['recording']}' changes its shape "
+            f"by {amount_text(big['shape_rms'], unit, '.2g')} RMS beyond a vertical shift from "
+            f"t = {big['t_a']:.3g} s to {big['t_b']:.3g} s, its output level moved by "
+            f"{amount_text(big['level_b'] - big['level_a'], unit, '.2g')}; no classical "
+            "(congruent) Preisach model does that - the actuator's loops change with its "
+            "strain (non-congruence), or the sensor reads through a nonlinear curve (sensor "
+            "nonlinearity), which these recordings cannot tell apart; to separate them: "
+            f"{separating_experiment('non_congruence', 'sensor_nonlinearity')}"
+        ),
+        evidence=(
+            f"a classical Preisach model on a {check['levels']}-level grid with free initial "
+            f"states predicts interleaved {1e3 * check['stretch_s']:.0f} ms held-out stretches "
+            f"at {check['ratio']:.3g} x the noise, but {lc['pairs']} pair(s) of minor loops "
+            f"between the same inputs differ in shape by "
+            f"{amount_text(lc['shape_rms'], unit, '.2g')} RMS ({lc['shape_noise_ratio']:.2g} x "
+            f"the noise; one shape plus a shift against a shape per loop: F = {lc['F']:.3g}, "
+            f"p = {lc['p']:.2g}; bar p < {LOOP_ALPHA:g} and {LOOP_MIN_SHAPE:g} x the noise), "
+            "a test of Mayergoyz's congruency property that fits no model"
+        ),
+        where=where_of([ctx.recs[i] for i in diag], [curves[i] for i in diag], ctx.u_span),
+        parameters={
+            "shape_rms": {
+                "value": float(lc["shape_rms"]),
+                "std": float("nan"),
+                "unit": unit or "V",
+            },
+            "peak_to_peak": _peak_to_peak(ctx, curves),
+        },
+        heldout_rmse_before=rmse,
+        heldout_rmse_after=rmse,
+    )
+
+
 def _unknown_start_note(
     ctx: Context, steps: Sequence[StepResult], names: Sequence[str]
 ) -> str | None:
@@ -923,6 +979,9 @@ def _report(
         if check is not None and curves is not None and effects is final.effects:
             if check["found"] == "output_curve":  # more than the resolution: loop heights
                 effects = [_classical_curve(ctx, check, curves, sigma_hat)]
+            elif check["found"] == "minor_loops":  # model-free: loops that are not congruent
+                if motion is None or not motion.moves:  # (creep moves in the holds too)
+                    effects = [_loop_congruency(ctx, check, curves)]
             else:
                 change = _classical_change(ctx, check, curves, motion, sigma_hat)
                 if change is not None:

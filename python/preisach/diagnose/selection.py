@@ -60,7 +60,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .candidates import Candidate, DriftCandidate
-from .congruency import output_curve_check
+from .congruency import minor_loop_check, output_curve_check
 from .context import Chain, Context, Fold
 from .drift import drift_refuted_by_holds
 from .holds import HoldEvidence, HoldPieces, hold_evidence, hold_pieces
@@ -437,7 +437,13 @@ def resolution_check(
     level are named ``non_congruence``, with a sensor curve as the explanation the data
     cannot tell from it (``core._classical_curve``); a drift found so is named by input
     holds: creep when the residual follows the moves into them, a sensor drift when it does
-    not (``core._classical_change``).
+    not (``core._classical_change``).  When neither passes, the recordings' repeated minor
+    loops are compared with no model at all
+    (:func:`~preisach.diagnose.congruency.minor_loop_check`, key ``minor_loops``): loops
+    between the same inputs that differ in shape beyond a vertical shift are what no
+    classical model makes however its weights are refitted, named ``non_congruence`` (key
+    ``found`` = ``minor_loops``, ``core._loop_congruency``) unless the output moves within
+    the input holds (creep and drift change a loop's shape too).
 
     ``base_within``: the refitted base is already within the bound.  The two tests beyond
     the fine model still run (the diagnosis calls them whenever nothing was kept): a base
@@ -448,7 +454,8 @@ def resolution_check(
 
     Returns the JSON-ready check with ``consistent`` and a one-line ``statement``, and the
     fine model's curves (V, per recording) of what made the residual more than the
-    resolution: the static output curve or the drift, the one ``found`` (None when neither).
+    resolution: the static output curve, the drift or the loops' shape differences, the one
+    ``found`` (None when none).
     """
     chk = classical_check(ctx, sigma)
     ok = bool(base_within or chk.ratio <= noise_ratio)
@@ -476,16 +483,19 @@ def resolution_check(
             f"held-out stretches (bound {noise_ratio:g} x): the residual is not the base's "
             "resolution"
         )
-    curve = drift = None
+    curve = drift = loops = None
     curves = None
     found = None
     if ok:  # what no classical model makes: loops that scale with the output level
         # (congruency.py) and a slow change in time (a drift or creep); the larger of the
-        # two that pass names it
+        # two that pass names it; else minor loops between the same inputs whose shapes
+        # differ (a model-free test, where the recordings hold such loops)
         cc = output_curve_check(ctx, sigma)
         dc = _drift_beyond_classical(ctx, sigma, seed=0)
+        lc = minor_loop_check(ctx, sigma)
         curve = cc.as_dict()
         drift = {"gain_noise_variances": dc.gain, "p": dc.p}
+        loops = lc.as_dict()
         passing = [
             (res.gain, key, res)
             for key, res in (("output_curve", cc), ("drift", dc))
@@ -495,6 +505,20 @@ def resolution_check(
             _, found, best = max(passing, key=lambda g: g[0])
             ok = False
             curves = best.curves
+        elif lc.passes():
+            found, ok = "minor_loops", False
+            curves = lc.curves(ctx)
+            k, pr = lc.largest()
+            loops["largest"] = {
+                "recording": ctx.recs[k].name,
+                "low": pr.low,
+                "high": pr.high,
+                "t_a": pr.t_a,
+                "t_b": pr.t_b,
+                "level_a": pr.level_a,
+                "level_b": pr.level_b,
+                "shape_rms": pr.shape_rms,
+            }
         if found == "output_curve":
             statement = (
                 f"{within}, but a static curve of the output adds {cc.gain:.2g} x the noise "
@@ -514,12 +538,27 @@ def resolution_check(
                 "start and the end of a run separates a drift (it moves) from creep (it "
                 "repeats)"
             )
+        elif found == "minor_loops":
+            statement = (
+                f"{within}, but minor loops between the same inputs differ in shape beyond "
+                f"a vertical shift by {amount_text(lc.shape_rms, ctx.output_unit, '.2g')} RMS "
+                f"({lc.shape_rms / sigma:.2g} x the noise; F = {lc.F:.3g}, p = {lc.p:.2g} "
+                f"over {len(lc.pairs)} pair(s)), which no classical Preisach model does "
+                "(congruency): the loops change with the output level (non-congruence) or "
+                "the sensor reads through a nonlinear curve"
+            )
+        elif ok and lc.pairs:
+            statement += (
+                f"; {len(lc.pairs)} pair(s) of repeated minor loops agree in shape up to a "
+                f"vertical shift (F = {lc.F:.3g}, p = {lc.p:.2g}), as a congruent model's do"
+            )
     report = {
         **chk.as_dict(),
         "consistent": ok,
         "statement": statement,
         "output_curve": curve,
         "drift": drift,
+        "minor_loops": loops,
         "found": found,
     }
     return report, curves

@@ -1,0 +1,150 @@
+"""Minor loops between the same inputs, compared with no model (Mayergoyz's congruency).
+
+The devices are the product-model piezo of ``test_diagnose_congruency`` (domains that stiffen
+as the strain grows) and the classical SS15 surfaces; the inputs repeat one minor loop at two
+output levels, as the congruent-minor-loop (CML) experiment of thesis section 3.2.2 does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _inputs import legs, offset_loops
+from preisach import PreisachModel, Recording, _core
+from preisach.diagnose.congruency import LOOP_ALPHA, LOOP_MIN_SHAPE, loop_shapes
+from preisach.identify import identify_fod
+from preisach.waveforms import fod_sweep
+from scipy import stats
+from test_diagnose_congruency import _device
+
+DT = 2e-3
+#: one loop between -40 and 40 V, reached from -100 V and again after a peak at 100 V
+CML = [-100.0, 40.0, -40.0, 40.0, 100.0, -40.0, 40.0, -40.0]
+
+
+def _cml(points: list[float] = CML, leg: float = 0.25) -> np.ndarray:
+    return np.concatenate([np.full(25, -100.0), legs(points, leg, sample_time=DT).u])
+
+
+def _p(shape) -> float:
+    F = ((shape.rss_same - shape.rss_own) / shape.q) / (shape.rss_own / (shape.n - shape.k))
+    return float(stats.f.sf(F, shape.q, shape.n - shape.k))
+
+
+def _classical(u: np.ndarray) -> np.ndarray:
+    m = PreisachModel.builtin("ss15-1hz", levels=21)
+    return _core.simulate(m.table, u, m.negative_saturation(), "clamp")[0]
+
+
+def test_a_classical_device_passes_at_the_tests_level():
+    """Congruent loops in noise: the F-test's p-values spread evenly, shapes differ by nothing.
+
+    Fails when the test's null distribution drifts (the F statistic's degrees of freedom, a
+    spline too coarse for a classical branch, or the vertical shift left out of the model).
+    """
+    u = _cml()
+    x = _classical(u)
+    t = np.arange(u.size) * DT
+    rng = np.random.default_rng(3)
+    ps, shapes = [], []
+    for _ in range(60):
+        (pr,) = loop_shapes(t, u, x + rng.normal(0.0, 1e-3, u.size))
+        ps.append(_p(pr))
+        shapes.append(pr.shape_rms / 1e-3)
+    ps = np.array(ps)
+    assert 0.0 <= np.mean(ps < 0.1) <= 0.25, np.sort(ps)
+    assert np.mean(ps < LOOP_ALPHA) == 0.0, np.sort(ps)
+    assert np.median(shapes) < 0.5 * LOOP_MIN_SHAPE, shapes
+
+
+def test_loops_that_shrink_at_high_strain_differ_in_shape():
+    """A stiffening of 1 % per unit output: the loop at the higher level is measurably smaller.
+
+    Fails when the test loses the difference (p above the bar, a size below the bar) or
+    reads the loops' levels the wrong way round.
+    """
+    u = _cml()
+    y = _device(u, 0.01, 1)
+    (pr,) = loop_shapes(np.arange(u.size) * DT, u, y - _classical(u), y=y)
+    assert _p(pr) < LOOP_ALPHA
+    assert pr.shape_rms >= LOOP_MIN_SHAPE * 1e-3
+    assert pr.level_b > pr.level_a  # the second loop follows the peak at 100 V
+    assert (pr.low, pr.high) == (-40.0, 40.0)
+
+
+def _dip(u: np.ndarray) -> np.ndarray:
+    """``u`` with a 0.5 V dip (below the reversal tolerance) inside its last rising leg."""
+    k = int(np.flatnonzero(np.diff(u) > 0)[-1]) - 60
+    dip = u[k] - 0.5 * (1.0 - np.abs(np.arange(-5, 6)) / 5.0)
+    return np.concatenate([u[:k], dip, u[k:]])
+
+
+@pytest.mark.parametrize(
+    ("u", "why"),
+    [
+        (_cml([-100.0, 40.0, -40.0, 40.0, 100.0, -39.9, 40.0, -40.0]), "another reversal value"),
+        (_dip(_cml()), "an inner reversal"),
+    ],
+)
+def test_loops_that_are_not_the_same_loop_are_not_compared(u, why):
+    """Only the same loop repeated is compared (``why``): a branch from another reversal value
+    is another first-order curve, and an inner reversal starts a loop of its own.
+
+    Fails when such loops are paired (a classical device would then fail the test).
+    """
+    assert loop_shapes(np.arange(u.size) * DT, u, _classical(u)) == [], why
+
+
+def test_loops_run_at_other_rates_are_not_compared():
+    """The same loop at 0.25 s and at 0.5 s per leg is left alone: a device that is not quite
+    rate-independent would fail the test there for a reason other than congruency.
+    """
+    u = np.concatenate(
+        [
+            np.full(25, -100.0),
+            legs([-100.0, 40.0, -40.0, 40.0, 100.0], 0.25, sample_time=DT).u,
+            legs([100.0, -40.0, 40.0, -40.0], 0.5, sample_time=DT).u[1:],
+        ]
+    )
+    assert loop_shapes(np.arange(u.size) * DT, u, _classical(u)) == []
+
+
+def _diagnose(stiffening: float):
+    from preisach.diagnose import diagnose
+
+    sweep = fod_sweep(np.linspace(-100.0, 100.0, 11), frequency=2.0, sample_time=DT).u
+    ident = Recording.from_arrays(
+        t=np.arange(sweep.size) * DT, u=sweep, y=_device(sweep, stiffening, 0)
+    )
+    inputs = [np.concatenate([np.full(25, -100.0), offset_loops(DT)]), _cml()]
+    recs = [
+        Recording.from_arrays(t=np.arange(u.size) * DT, u=u, y=_device(u, stiffening, k + 1))
+        for k, u in enumerate(inputs)
+    ]
+    model = identify_fod(ident, 11).model
+    return diagnose(model, recs, identification=[ident], candidates=["delay"], progress=False)
+
+
+@pytest.mark.parametrize("stiffening", [0.0, 0.01])
+def test_a_cml_recording_names_what_the_refit_hides(stiffening):
+    """A stiffening too small for the curve beyond the fine model is named by the CML loops.
+
+    Loops 1 % shorter per unit output: the refitted base is within the noise bound and a
+    static curve of the output adds too little to the fine classical model (p about 0.08),
+    but the loop the CML recording repeats at two levels differs in shape (p about 1e-11):
+    ``non_congruence``, found by ``minor_loops``.  The classical device stays ``none``.
+    Fails when the loops are not compared when nothing else is found, or a congruent
+    device's loops are called different.
+    """
+    rep = _diagnose(stiffening)
+    chk = rep.noise_test["classical"]
+    assert chk is not None, rep.summary()
+    assert chk["minor_loops"]["pairs"] == 1, chk["minor_loops"]
+    if stiffening:
+        assert chk["found"] == "minor_loops", chk
+        assert rep.verdict == "non_congruence", rep.summary()
+        assert "-40 and 40 V" in rep.effects[0].statement, rep.effects[0].statement
+        assert "sensor nonlinearity" in rep.effects[0].statement
+    else:
+        assert chk["minor_loops"]["p"] > LOOP_ALPHA, chk["minor_loops"]
+        assert rep.verdict == "none", rep.summary()
