@@ -698,32 +698,7 @@ def drift_shape(form, p, n, n_ext=None):
     """Unit-RMS drift realisation over n samples.  With n_ext (--cml) the same
     realisation is continued to n_ext > n samples (later session time); all
     normalisations still refer to the first n samples, so x[:n] is unchanged."""
-    if n_ext is not None:
-        return _drift_shape_ext(form, p, n, n_ext)
-    rng = np.random.default_rng(p["seed"])
-    t = np.arange(n) * DT
-    if form == "thermal_warmup":
-        x = (1.0 - np.exp(-t / p["tau_w"])) + p["slope"] * t / t[-1]
-    elif form == "random_walk":
-        x = np.cumsum(rng.standard_normal(n))
-        x = lp1(x, p["tau_s"], 0.0)
-    elif form == "flicker_1f":
-        N = 1 << int(math.ceil(math.log2(n)))
-        f = np.fft.rfftfreq(N, DT)
-        amp = np.zeros_like(f)
-        amp[1:] = f[1:] ** (-p["gamma"] / 2.0) / np.sqrt(1.0 + (f[1:] / p["f_c"]) ** 4)
-        X = amp * (rng.standard_normal(len(f)) + 1j * rng.standard_normal(len(f)))
-        x = np.fft.irfft(X, N)[:n]
-    elif form == "hvac_cycle":
-        w = 2 * np.pi / p["period"]
-        x = np.sin(w * t + p["phase"]) + p["h2"] * np.sin(2 * w * t + 2 * p["phase"] + 1.0)
-    else:
-        raise ValueError(form)
-    x = x - x[0]
-    return x / np.sqrt(np.mean(x * x))
-
-
-def _drift_shape_ext(form, p, n, n_ext):
+    n_ext = n if n_ext is None else n_ext
     rng = np.random.default_rng(p["seed"])
     t = np.arange(n_ext) * DT
     if form == "thermal_warmup":
@@ -737,7 +712,7 @@ def _drift_shape_ext(form, p, n, n_ext):
         amp = np.zeros_like(f)
         amp[1:] = f[1:] ** (-p["gamma"] / 2.0) / np.sqrt(1.0 + (f[1:] / p["f_c"]) ** 4)
         X = amp * (rng.standard_normal(len(f)) + 1j * rng.standard_normal(len(f)))
-        x = np.fft.irfft(X, N)[np.arange(n_ext) % N]  # periodic continuation
+        x = np.fft.irfft(X, N)[np.arange(n_ext) % N]  # periodic continuation beyond n
     elif form == "hvac_cycle":
         w = 2 * np.pi / p["period"]
         x = np.sin(w * t + p["phase"]) + p["h2"] * np.sin(2 * w * t + 2 * p["phase"] + 1.0)
