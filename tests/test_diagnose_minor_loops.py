@@ -109,14 +109,14 @@ def test_loops_run_at_other_rates_are_not_compared():
     assert loop_shapes(np.arange(u.size) * DT, u, _classical(u)) == []
 
 
-def _diagnose(stiffening: float):
+def _diagnose(stiffening: float, cml: bool = True):
     from preisach.diagnose import diagnose
 
     sweep = fod_sweep(np.linspace(-100.0, 100.0, 11), frequency=2.0, sample_time=DT).u
     ident = Recording.from_arrays(
         t=np.arange(sweep.size) * DT, u=sweep, y=_device(sweep, stiffening, 0)
     )
-    inputs = [np.concatenate([np.full(25, -100.0), offset_loops(DT)]), _cml()]
+    inputs = [np.concatenate([np.full(25, -100.0), offset_loops(DT)])] + ([_cml()] if cml else [])
     recs = [
         Recording.from_arrays(t=np.arange(u.size) * DT, u=u, y=_device(u, stiffening, k + 1))
         for k, u in enumerate(inputs)
@@ -148,3 +148,15 @@ def test_a_cml_recording_names_what_the_refit_hides(stiffening):
     else:
         assert chk["minor_loops"]["p"] > LOOP_ALPHA, chk["minor_loops"]
         assert rep.verdict == "none", rep.summary()
+        assert not any("CML experiment" in n for n in rep.notes), rep.notes
+
+
+def test_a_none_without_repeated_loops_says_which_experiment_would_test_congruency():
+    """``none`` on recordings that repeat no minor loop: the note names the CML experiment.
+
+    Fails when a user is left to believe congruency was tested directly.
+    """
+    rep = _diagnose(0.0, cml=False)
+    assert rep.verdict == "none", rep.summary()
+    assert rep.noise_test["classical"]["minor_loops"]["pairs"] == 0
+    assert any("CML experiment" in n for n in rep.notes), rep.notes

@@ -1014,6 +1014,14 @@ def _report(
     start_note = _unknown_start_note(ctx, steps, names)
     if start_note:
         notes.append(start_note)
+    if verdict == "none" and check is not None and not check["minor_loops"]["pairs"]:
+        notes.append(
+            "no recording repeats a minor loop, so congruency was tested only against the fine "
+            "classical model, which a refit of the weights can bring close to a non-congruent "
+            "device on these experiments; to test it directly, record the same minor loop at "
+            "two output levels (a CML experiment: up to high, down to low, up to high, then "
+            "past high to a peak and back through the same loop)"
+        )
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "
