@@ -1014,7 +1014,8 @@ def _report(
     start_note = _unknown_start_note(ctx, steps, names)
     if start_note:
         notes.append(start_note)
-    if verdict == "none" and check is not None and not check["minor_loops"]["pairs"]:
+    loops = (check or {}).get("minor_loops") or {}
+    if verdict == "none" and check is not None and not loops.get("pairs"):
         notes.append(
             "no recording repeats a minor loop, so congruency was tested only against the fine "
             "classical model, which a refit of the weights can bring close to a non-congruent "
