@@ -171,6 +171,16 @@ def _branch_samples(
     return k[keep]
 
 
+def _shape_rms(drop: float, q: int, rss: float, dof: int, n: int) -> float:
+    """RMS (V) of a shape difference from the drop ``drop`` of the residual sum of squares.
+
+    Less its expectation under congruency (``q`` noise variances, the variance ``rss / dof``);
+    about half of a difference ``d`` goes to each loop, so the drop is ``n d^2 / 4``.
+    """
+    excess = drop - q * rss / max(dof, 1)
+    return 2.0 * math.sqrt(max(excess, 0.0) / max(n, 1))
+
+
 def _monotone(u: Array, i0: int, i1: int, direction: int) -> bool:
     """Whether ``u[i0..i1]`` never moves against ``direction``.
 
@@ -272,7 +282,6 @@ def loop_shapes(
         loop_a = np.concatenate([parts[0], parts[2]])
         loop_b = np.concatenate([parts[1], parts[3]])
         q = 2 * K - 1
-        excess = rss_same - rss_own - q * rss_own / max(n - 4 * K, 1)
         out.append(
             LoopShape(
                 lo,
@@ -286,7 +295,7 @@ def loop_shapes(
                 q,
                 n,
                 4 * K,
-                2.0 * math.sqrt(max(excess, 0.0) / n),
+                _shape_rms(rss_same - rss_own, q, rss_own, n - 4 * K, n),
                 loop_b.astype(np.int64),
                 d,
             )
@@ -359,6 +368,5 @@ def minor_loop_check(ctx: Context, sigma: float) -> MinorLoopCheck:
     dof2 = sum(pr.n - pr.k for _, pr in pairs)
     F = (num / q) / max(den / max(dof2, 1), 1e-300)
     p = float(stats.f.sf(F, q, dof2))
-    n = sum(pr.n for _, pr in pairs)
-    rms = 2.0 * math.sqrt(max(num - q * den / max(dof2, 1), 0.0) / max(n, 1))
+    rms = _shape_rms(num, q, den, dof2, sum(pr.n for _, pr in pairs))
     return MinorLoopCheck(pairs, float(F), (int(q), int(dof2)), p, rms, float(sigma))
