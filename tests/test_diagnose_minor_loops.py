@@ -11,7 +11,11 @@ import numpy as np
 import pytest
 from _inputs import legs, offset_loops
 from preisach import PreisachModel, Recording, _core
-from preisach.diagnose.congruency import LOOP_ALPHA, LOOP_MIN_SHAPE, loop_shapes
+from preisach.diagnose.candidates import NonCongruenceCandidate
+from preisach.diagnose.congruency import LOOP_ALPHA, LOOP_MIN_SHAPE, loop_shapes, minor_loop_check
+from preisach.diagnose.context import Chain, Context, FittedEffect
+from preisach.diagnose.data import prepare_recordings
+from preisach.diagnose.selection import _loops_refute
 from preisach.identify import identify_fod
 from preisach.waveforms import fod_sweep
 from scipy import stats
@@ -107,6 +111,55 @@ def test_loops_run_at_other_rates_are_not_compared():
         ]
     )
     assert loop_shapes(np.arange(u.size) * DT, u, _classical(u)) == []
+
+
+def _held(u: np.ndarray, hold: int) -> np.ndarray:
+    """``u`` with the input held for ``hold`` samples at every reversal (as a rig's CML does)."""
+    d = np.diff(u)
+    rev = np.flatnonzero(d[:-1] * d[1:] < 0) + 1
+    return np.insert(u, np.repeat(rev, hold), np.repeat(u[rev], hold))
+
+
+def test_holds_at_the_reversals_set_no_rate():
+    """Loops with 40 % of a leg held at every reversal are all compared, whichever way they run.
+
+    The loop ``40 -> -40 -> 40`` reached from -100 V and the loop ``-40 -> 40 -> -40`` after
+    the peak: a branch's range ends at its turning point, the last sample of a hold, so one
+    branch of a pair carries a hold that the other does not.  Fails when the rate rule counts
+    the held samples (the pair would be left out as run at another rate).
+    """
+    u = _held(_cml(), int(0.4 * 0.25 / DT))
+    shapes = loop_shapes(np.arange(u.size) * DT, u, _classical(u))
+    assert len(shapes) == 1, shapes
+    pr = shapes[0]
+    assert pr.level_b > pr.level_a and (pr.low, pr.high) == (-40.0, 40.0)
+
+
+@pytest.mark.parametrize("stiffening", [0.0, 0.01])
+def test_a_fit_that_makes_congruent_loops_differ_is_refuted(stiffening):
+    """A moving-model fit is refuted by recorded loops that agree, not by loops that differ.
+
+    The device's own classical model as the base; the fit feeds back on the relays with the
+    square of the output (5 % of the input span at the output range's ends).  On the
+    classical device its loops differ where the recorded ones agree: refuted.  On the
+    stiffening device the recorded loops already differ: a fit that makes them differ is
+    what the loops ask for.  Fails when the refutation ignores the base's loops or misses a
+    fit the loops contradict.
+    """
+    u = _cml()
+    rec = Recording.from_arrays(t=np.arange(u.size) * DT, u=u, y=_device(u, stiffening, 1))
+    model = PreisachModel.builtin("ss15-1hz", levels=21)
+    ctx = Context(model, prepare_recordings(model, [rec]), refit=False)
+    cand = NonCongruenceCandidate()
+    cand.prepare(ctx)
+    fit = Chain(ctx.given, [FittedEffect(cand, np.array([0.0, 0.05 * cand.limit, 0.0, 0.0]))])
+    base = minor_loop_check(ctx, 1e-3)
+    why = _loops_refute([base], [minor_loop_check(ctx, 1e-3, fit)])
+    if stiffening:
+        assert base.p < LOOP_ALPHA and why is None, (base.p, why)
+    else:
+        assert base.p > 0.05, base.p
+        assert why is not None and "congruent" in why, why
 
 
 def _diagnose(stiffening: float, cml: bool = True):

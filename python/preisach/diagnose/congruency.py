@@ -190,9 +190,14 @@ def _monotone(u: Array, i0: int, i1: int, direction: int) -> bool:
     return bool(np.all(direction * np.diff(u[i0 : i1 + 1]) >= 0.0))
 
 
-def _similar(a: tuple[int, int], b: tuple[int, int]) -> bool:
-    """Whether two branches take about as long (within :data:`LOOP_RATE_RATIO`)."""
-    na, nb = a[1] - a[0] + 1, b[1] - b[0] + 1
+def _similar(u: Array, a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Whether two branches move the input for about as long (within :data:`LOOP_RATE_RATIO`).
+
+    Only the samples that move the input count: a branch's range may include a hold at one
+    end (a reversal's turning point is the last sample at the extreme), and a hold sets no
+    rate.
+    """
+    na, nb = (int(np.count_nonzero(np.diff(u[i0 : i1 + 1]))) for i0, i1 in (a, b))
     return bool(max(na, nb) <= LOOP_RATE_RATIO * min(na, nb))
 
 
@@ -218,7 +223,7 @@ def loop_shapes(
     matched within ``match_tol``, default 1e-5 of it: a branch from another reversal value
     is another first-order curve, so only loops between the same inputs compare - the
     same loop repeated, as a CML experiment or a periodic input does).  Only loops whose
-    branches are monotone (no inner reversal at all) and take about as long
+    branches are monotone (no inner reversal at all) and move the input for about as long
     (:data:`LOOP_RATE_RATIO`) are compared.  Per pair, each branch (rising, falling) of each
     loop is read as a cubic B-spline of the input over the loops' common range (one knot
     interval per ``4 * min_samples`` samples of the shorter branch, 2 to 12), twice: one
@@ -240,7 +245,7 @@ def loop_shapes(
         A, B = loops[i], loops[j]
         if not all(_monotone(u, *br, up) for L in (A, B) for br, up in ((L.rise, 1), (L.fall, -1))):
             continue
-        if not (_similar(A.rise, B.rise) and _similar(A.fall, B.fall)):
+        if not (_similar(u, A.rise, B.rise) and _similar(u, A.fall, B.fall)):
             continue
         lo, hi = max(A.low, B.low), min(A.high, B.high)
         parts = [_branch_samples(u, ok, *L.rise, lo, hi) for L in (A, B)] + [
@@ -341,7 +346,7 @@ class MinorLoopCheck:
         }
 
 
-def minor_loop_check(ctx: Context, sigma: float) -> MinorLoopCheck:
+def minor_loop_check(ctx: Context, sigma: float, chain: Chain | None = None) -> MinorLoopCheck:
     """Test the diagnosis recordings' comparable minor loops for congruency.
 
     Every classical Preisach model is congruent (Mayergoyz's theorem): minor loops between
@@ -350,11 +355,13 @@ def minor_loop_check(ctx: Context, sigma: float) -> MinorLoopCheck:
     congruent-minor-loop (CML) experiment of thesis §3.2.2 repeats one loop at two output
     levels - tests this directly, with no model fitted: :func:`loop_shapes` on each diagnosis
     recording's residual against the given model (its usable samples), all pairs pooled in
-    one F-test of "one shape plus a shift" against "a shape per loop".  The F-test's
+    one F-test of "one shape plus a shift" against "a shape per loop".  With ``chain`` the
+    residual is against that chain's prediction instead: whether a fitted effect makes
+    loops that agree differ.  The F-test's
     denominator is the residual about each loop's own spline, so it does not lean on
     ``sigma`` (V); ``sigma`` only scales the size reported.
     """
-    sims = ctx.predict(Chain(ctx.given))
+    sims = ctx.predict(Chain(ctx.given) if chain is None else chain)
     pairs: list[tuple[int, LoopShape]] = []
     for i in ctx.diag:
         r = ctx.recs[i]
