@@ -357,9 +357,9 @@ def minor_loop_check(ctx: Context, sigma: float, chain: Chain | None = None) -> 
     recording's residual against the given model (its usable samples), all pairs pooled in
     one F-test of "one shape plus a shift" against "a shape per loop".  With ``chain`` the
     residual is against that chain's prediction instead: whether a fitted effect makes
-    loops that agree differ.  The F-test's
-    denominator is the residual about each loop's own spline, so it does not lean on
-    ``sigma`` (V); ``sigma`` only scales the size reported.
+    loops that agree differ.  The F-test's denominator is the residual about each loop's
+    own spline, so it does not lean on ``sigma`` (V); ``sigma`` only scales the size
+    reported.
     """
     sims = ctx.predict(Chain(ctx.given) if chain is None else chain)
     pairs: list[tuple[int, LoopShape]] = []
