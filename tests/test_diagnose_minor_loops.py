@@ -154,7 +154,7 @@ def test_a_fit_that_makes_congruent_loops_differ_is_refuted(stiffening):
     cand.prepare(ctx)
     fit = Chain(ctx.given, [FittedEffect(cand, np.array([0.0, 0.05 * cand.limit, 0.0, 0.0]))])
     base = minor_loop_check(ctx, 1e-3)
-    why = _loops_refute([base], [minor_loop_check(ctx, 1e-3, fit)])
+    why = _loops_refute(ctx, 1e-3, [base], [fit])
     if stiffening:
         assert base.p < LOOP_ALPHA and why is None, (base.p, why)
     else:

@@ -277,11 +277,14 @@ def final_implausible(
     return bad
 
 
-def _loops_refute(base: list[MinorLoopCheck], fits: list[MinorLoopCheck]) -> str | None:
+def _loops_refute(
+    ctx: Context, sigma: float, base: list[MinorLoopCheck], chains: list[Chain]
+) -> str | None:
     """Why the recorded minor loops contradict a fit that breaks congruency (or None).
 
-    ``base`` and ``fits``: :func:`~.congruency.minor_loop_check` on each fold's residual
-    before and after the candidate (its chain predicts every sample).  Where the recordings
+    ``base``: :func:`~.congruency.minor_loop_check` on each fold's residual before the
+    candidate; ``chains``: the candidate's fit per fold (each predicts every sample), tested
+    the same way only when the base's loops agree.  Where the recordings
     repeat a minor loop - the CML experiment runs one at three output levels - a device
     whose loops change with the output level shows it there, whatever the weights.  When
     the loops about the base agree in every fold (p >= :data:`LOOPS_AGREE_P`) and a fold's
@@ -293,7 +296,8 @@ def _loops_refute(base: list[MinorLoopCheck], fits: list[MinorLoopCheck]) -> str
     """
     if not base or not all(b.pairs and b.p >= LOOPS_AGREE_P for b in base):
         return None
-    for k, f in enumerate(fits):
+    for k, ch in enumerate(chains):
+        f = minor_loop_check(ctx, sigma, ch)
         if f.passes():
             b = base[k]
             return (
@@ -853,9 +857,7 @@ def run_selection(
             if ok[name] and remaining[name].name in LOOP_EFFECTS:
                 if base_loops is None:
                     base_loops = [minor_loop_check(ctx, sigma, ch) for ch in chains]
-                bad = _loops_refute(
-                    base_loops, [minor_loop_check(ctx, sigma, ch) for ch in new_chains[name]]
-                )
+                bad = _loops_refute(ctx, sigma, base_loops, new_chains[name])
                 if bad:
                     ok[name] = False
                     why[name] = f"implausible for its name: {bad}"
