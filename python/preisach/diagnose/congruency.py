@@ -361,11 +361,11 @@ def minor_loop_check(ctx: Context, sigma: float, chain: Chain | None = None) -> 
     own spline, so it does not lean on ``sigma`` (V); ``sigma`` only scales the size
     reported.
     """
-    sims = ctx.predict(Chain(ctx.given) if chain is None else chain)
+    ch = Chain(ctx.given) if chain is None else chain
     pairs: list[tuple[int, LoopShape]] = []
-    for i in ctx.diag:
+    for i in ctx.diag:  # the identification recordings are not simulated: never read here
         r = ctx.recs[i]
-        e = r.y - np.nan_to_num(sims[i])
+        e = r.y - np.nan_to_num(ctx.predict_one(i, ch))
         pairs += [(i, pr) for pr in loop_shapes(r.t, r.u, e, r.usable, y=r.y)]
     if not pairs:
         return MinorLoopCheck([], float("nan"), (0, 0), 1.0, 0.0, float(sigma))

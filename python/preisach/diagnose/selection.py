@@ -284,9 +284,9 @@ def _loops_refute(
 
     ``base``: :func:`~.congruency.minor_loop_check` on each fold's residual before the
     candidate; ``chains``: the candidate's fit per fold (each predicts every sample), tested
-    the same way only when the base's loops agree.  Where the recordings
-    repeat a minor loop - the CML experiment runs one at three output levels - a device
-    whose loops change with the output level shows it there, whatever the weights.  When
+    the same way only when the base's loops agree.  Where the recordings repeat a minor loop
+    - the CML experiment runs one at three output levels - a device whose loops change with
+    the output level shows it there, whatever the weights.  When
     the loops about the base agree in every fold (p >= :data:`LOOPS_AGREE_P`) and a fold's
     fit makes them differ (the test passes on its residual: p < ``LOOP_ALPHA`` and a shape
     of ``LOOP_MIN_SHAPE`` noise SDs), the fit predicts a difference the device does not
