@@ -33,7 +33,14 @@ Where the recordings repeat a minor loop - the congruent-minor-loop (CML) experi
 §3.2.2 runs one loop at two output levels - congruency is tested with no model at all
 (:func:`minor_loop_check`): the loops are read as splines of the input and must agree up to a
 vertical shift, which no refit of the weights can change.  Its power grows with how far
-apart the loops' output levels lie.
+apart the loops' output levels lie.  Two tests pool the pairs: the loops' shapes (a spline
+per loop against one shared), and their heights - one coefficient for how a loop's height
+changes with its output level, what a static curve ``f`` makes to first order
+(``f'(x_b) / f'(x_a) - 1`` about ``f''/f'`` times the level difference).  The height test
+spends one parameter where the shape test spends one per spline coefficient, so smaller
+non-congruences show; a drift or creep changes a loop along its branches in time, rarely by
+its height alone, so the height is named only when it makes most of the shape difference
+(:data:`LOOP_SCALE_SHARE`).
 """
 
 from __future__ import annotations
@@ -49,17 +56,21 @@ from scipy import interpolate, stats
 
 from ..verify import comparable_loops, minor_loops
 from .context import Chain, Context
+from .locate import amount_text
 from .scoring import BeyondClassical, beyond_classical
 
 __all__ = [
     "LOOP_ALPHA",
     "LOOP_MIN_SHAPE",
     "LOOP_RATE_RATIO",
+    "LOOP_SCALE_SHARE",
     "LoopShape",
     "MinorLoopCheck",
     "OutputCurveCheck",
+    "loop_difference_text",
     "loop_shapes",
     "minor_loop_check",
+    "pooled_loop_check",
     "output_curve_check",
     "output_level",
 ]
@@ -68,6 +79,9 @@ __all__ = [
 LOOP_ALPHA = 0.001
 #: Smallest RMS shape difference (in noise standard deviations) it names.
 LOOP_MIN_SHAPE = 0.3
+#: Least share of the loops' shape difference (beyond the noise's) a change of their height
+#: must make for :meth:`MinorLoopCheck.passes` to name it by the height test alone.
+LOOP_SCALE_SHARE = 0.5
 #: Largest ratio of the durations of two loops' branches compared: loops run at other rates
 #: differ wherever the device is not quite rate-independent (blind seed-27 nulls: pairs of
 #: a multi-sine's loops at other rates and with inner reversals gave F 9-28).
@@ -143,6 +157,10 @@ class LoopShape:
     noise variances: about half of a shape difference ``d`` goes to each loop, so the drop
     is ``n d^2 / 4``); ``level_a``/``level_b`` (V): the loops' mean outputs;
     ``samples_b`` and ``difference`` (V): loop B's samples and its fitted shape minus A's.
+    ``scale`` (1): loop B's height relative to loop A's, less one - the coefficient of loop
+    B's own shape (the shared spline of the output, centred on B) added to the shared model;
+    ``scale_info`` (V^2): that shape's sum of squares beyond the shared model, so that the
+    scale's variance is the noise variance over it.
     """
 
     low: float
@@ -159,6 +177,8 @@ class LoopShape:
     shape_rms: float
     samples_b: NDArray[np.int64]
     difference: Array
+    scale: float = 0.0
+    scale_info: float = 0.0
 
 
 def _branch_samples(
@@ -275,6 +295,15 @@ def loop_shapes(
             row += p.size
         c_own, *_ = np.linalg.lstsq(own, target, rcond=None)
         c_same, *_ = np.linalg.lstsq(same, target, rcond=None)
+        # loop B's height against A's: the output's shared shape, centred on B, as one more
+        # column (its part the shared model makes is taken out: Frisch-Waugh-Lovell)
+        on_b = same[:, -1] > 0
+        c_lvl, *_ = np.linalg.lstsq(same, np.concatenate([level[p] for p in parts]), rcond=None)
+        shape = same[:, :-1] @ c_lvl[:-1]
+        z = np.where(on_b, shape - shape[on_b].mean(), 0.0)
+        z -= same @ np.linalg.lstsq(same, z, rcond=None)[0]
+        zz = float(z @ z)
+        scale = float(z @ (target - same @ c_same)) / zz if zz > 0 else 0.0
         rss_own = float(np.sum((target - own @ c_own) ** 2))
         rss_same = float(np.sum((target - same @ c_same) ** 2))
         # B's shape minus A's beyond the shift, on B's samples of both branches
@@ -303,6 +332,8 @@ def loop_shapes(
                 _shape_rms(rss_same - rss_own, q, rss_own, n - 4 * K, n),
                 loop_b.astype(np.int64),
                 d,
+                scale,
+                zz,
             )
         )
     return out
@@ -310,18 +341,47 @@ def loop_shapes(
 
 @dataclass
 class MinorLoopCheck:
-    """Outcome of :func:`minor_loop_check`."""
+    """Outcome of :func:`minor_loop_check`.
+
+    ``F``, ``dof``, ``p``: the shape test (one shape plus a shift per pair against a shape per
+    loop); ``shape_rms`` (V): the shape differences beyond the noise's, all pairs pooled.
+    ``height_per_volt`` (1/V) and ``height_sd``: the height test - loop B's height relative
+    to loop A's, less one, as ``height_per_volt`` times the loops' output level difference
+    (one coefficient for all pairs, as a static curve of the output makes to first order);
+    ``height_p`` its two-sided p-value; ``height_share`` the share of the shape differences
+    beyond the noise's that the change of height makes (NaN when there is none).
+    """
 
     pairs: list[tuple[int, LoopShape]]  # (recording index, pair)
     F: float
     dof: tuple[int, int]
     p: float
-    shape_rms: float  # RMS (V) of the shape differences beyond the noise's, all pairs pooled
+    shape_rms: float
     sigma: float  # the noise (V)
+    height_per_volt: float = 0.0
+    height_sd: float = float("inf")
+    height_p: float = 1.0
+    height_share: float = float("nan")
 
     def passes(self, alpha: float = LOOP_ALPHA, min_shape: float = LOOP_MIN_SHAPE) -> bool:
-        """Whether the loops differ in shape at level ``alpha`` by ``min_shape`` noise SDs."""
-        return bool(self.pairs and self.p < alpha and self.shape_rms >= min_shape * self.sigma)
+        """Whether the loops are not congruent, by either test.
+
+        The shape test: p < ``alpha`` and a shape difference of ``min_shape`` noise SDs.  The
+        height test: p < ``alpha`` and at least :data:`LOOP_SCALE_SHARE` of the shape
+        differences beyond the noise's made by the loops' heights changing with their output
+        level - the difference a non-congruence makes, told with one parameter where the shape
+        test spends one per spline coefficient, so smaller ones show; a drift or creep
+        changes a loop's shape in time and rarely its height alone.
+        """
+        if not self.pairs:
+            return False
+        shape = self.p < alpha and self.shape_rms >= min_shape * self.sigma
+        height = self.height_p < alpha and self.height_share >= LOOP_SCALE_SHARE
+        return bool(shape or height)
+
+    def agree(self, p: float) -> bool:
+        """Whether the loops agree: both tests' p-values at least ``p`` (pairs found)."""
+        return bool(self.pairs and self.p >= p and self.height_p >= p)
 
     def largest(self) -> tuple[int, LoopShape]:
         """Return the pair whose shapes differ most (recording index, pair)."""
@@ -343,7 +403,26 @@ class MinorLoopCheck:
             "p": self.p,
             "shape_rms": self.shape_rms,
             "shape_noise_ratio": self.shape_rms / self.sigma if self.sigma > 0 else None,
+            "height_per_volt": self.height_per_volt if self.pairs else None,
+            "height_sd": self.height_sd if self.pairs else None,
+            "height_p": self.height_p,
+            "height_share": self.height_share if math.isfinite(self.height_share) else None,
         }
+
+
+def loop_difference_text(lc: MinorLoopCheck, unit: str = "V") -> str:
+    """How the loops of a check differ, in words: the shape test and the height test.
+
+    ``unit``: the output's unit (the height changes per unit of output level).
+    """
+    share = lc.height_share if math.isfinite(lc.height_share) else 0.0
+    return (
+        f"in shape by {amount_text(lc.shape_rms, unit, '.2g')} RMS "
+        f"({lc.shape_rms / lc.sigma:.2g} x the noise; F = {lc.F:.3g}, p = {lc.p:.2g} over "
+        f"{len(lc.pairs)} pair(s)), in height by {100 * lc.height_per_volt:+.3g} "
+        f"+/- {100 * lc.height_sd:.2g} % per {unit} of output level (p = {lc.height_p:.2g}; "
+        f"{100 * min(max(share, 0.0), 1.0):.0f} % of the shape difference)"
+    )
 
 
 def minor_loop_check(ctx: Context, sigma: float, chain: Chain | None = None) -> MinorLoopCheck:
@@ -354,8 +433,9 @@ def minor_loop_check(ctx: Context, sigma: float, chain: Chain | None = None) -> 
     them and wherever the output sits.  A recording that holds two or more such loops - the
     congruent-minor-loop (CML) experiment of thesis §3.2.2 repeats one loop at two output
     levels - tests this directly, with no model fitted: :func:`loop_shapes` on each diagnosis
-    recording's residual against the given model (its usable samples), all pairs pooled in
-    one F-test of "one shape plus a shift" against "a shape per loop".  With ``chain`` the
+    recording's residual against the given model (its usable samples), all pairs pooled
+    (:func:`pooled_loop_check`) in one F-test of "one shape plus a shift" against "a shape per
+    loop", and in one test of the loops' heights against their output levels.  With ``chain`` the
     residual is against that chain's prediction instead: whether a fitted effect makes
     loops that agree differ.  The F-test's denominator is the residual about each loop's
     own spline, so it does not lean on ``sigma`` (V); ``sigma`` only scales the size
@@ -367,6 +447,18 @@ def minor_loop_check(ctx: Context, sigma: float, chain: Chain | None = None) -> 
         r = ctx.recs[i]
         e = r.y - np.nan_to_num(ctx.predict_one(i, ch))
         pairs += [(i, pr) for pr in loop_shapes(r.t, r.u, e, r.usable, y=r.y)]
+    return pooled_loop_check(pairs, sigma)
+
+
+def pooled_loop_check(pairs: list[tuple[int, LoopShape]], sigma: float) -> MinorLoopCheck:
+    """Pool pairs of :func:`loop_shapes` (with their recording indices) into both tests.
+
+    The shape test: one F-test of all pairs' drops against their own-shape residuals.  The
+    height test: every pair's relative height change as one coefficient times its output
+    level difference, by weighted least squares (each pair's scale variance is the pooled
+    residual variance over its ``scale_info``), two-sided t-test.  ``sigma`` (V) only
+    scales the sizes reported.
+    """
     if not pairs:
         return MinorLoopCheck([], float("nan"), (0, 0), 1.0, 0.0, float(sigma))
     num = sum(pr.rss_same - pr.rss_own for _, pr in pairs)
@@ -376,4 +468,22 @@ def minor_loop_check(ctx: Context, sigma: float, chain: Chain | None = None) -> 
     F = (num / q) / max(den / max(dof2, 1), 1e-300)
     p = float(stats.f.sf(F, q, dof2))
     rms = _shape_rms(num, q, den, dof2, sum(pr.n for _, pr in pairs))
-    return MinorLoopCheck(pairs, float(F), (int(q), int(dof2)), p, rms, float(sigma))
+    # the height test: scale_p = kappa * (level_b - level_a) for every pair, weighted least
+    # squares with the pairs' scale variances s2 / scale_info
+    s2 = max(den / max(dof2, 1), 1e-300)
+    dl = np.array([pr.level_b - pr.level_a for _, pr in pairs])
+    info = np.array([pr.scale_info for _, pr in pairs])
+    lam = np.array([pr.scale for _, pr in pairs])
+    w = float(np.sum(dl * dl * info))
+    if w > 0:
+        kappa = float(np.sum(lam * dl * info)) / w
+        sd = math.sqrt(s2 / w)
+        zt = kappa / sd
+        hp = float(2.0 * stats.t.sf(abs(zt), max(dof2, 1)))
+        excess = num / s2 - q  # the shape differences beyond the noise's, in noise variances
+        share = (zt * zt - 1.0) / excess if excess > 0 else float("nan")
+    else:
+        kappa, sd, hp, share = 0.0, float("inf"), 1.0, float("nan")
+    return MinorLoopCheck(
+        pairs, float(F), (int(q), int(dof2)), p, rms, float(sigma), kappa, sd, hp, share
+    )

@@ -19,7 +19,7 @@ from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
 from .candidates import Candidate, DriftCandidate
-from .congruency import LOOP_ALPHA, LOOP_MIN_SHAPE
+from .congruency import LOOP_ALPHA, LOOP_MIN_SHAPE, LOOP_SCALE_SHARE
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
@@ -808,7 +808,7 @@ def _classical_curve(
 
 
 def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarray]) -> EffectReport:
-    """Name minor loops between the same inputs that differ in shape (non-congruence).
+    """Name minor loops between the same inputs that differ in shape or height (non-congruence).
 
     When nothing was kept, the fine classical model of the resolution check is within the
     noise bound and neither a curve of the output nor a drift adds to it, the recordings'
@@ -816,15 +816,18 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
     levels - are compared with no model at all
     (:func:`~preisach.diagnose.congruency.minor_loop_check`): a classical Preisach model's
     loops between the same inputs differ by a vertical shift only, however the weights are
-    refitted.  A refit that absorbs a non-congruence on every other experiment cannot hide
-    it there.  No block is added to the model (the held-out RMSE is the fine model's before
-    and after); ``curves`` (V, per recording) are the shape differences on the later loops.
+    refitted, and have the same height wherever their output level.  A refit that absorbs a
+    non-congruence on every other experiment cannot hide it there.  No block is added to the
+    model (the held-out RMSE is the fine model's before and after); ``curves`` (V, per
+    recording) are the shape differences on the later loops.
     """
     lc = check["minor_loops"]
     big = lc["largest"]
     rmse = float(check["heldout_rmse"])
     diag = list(ctx.diag)
     unit = ctx.output_unit
+    moved = big["level_b"] - big["level_a"]
+    share = lc["height_share"] or 0.0
     return EffectReport(
         name="non_congruence",
         statement=(
@@ -832,7 +835,8 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
             f"{big['low']:.3g} and {big['high']:.3g} V in '{big['recording']}' changes its shape "
             f"by {amount_text(big['shape_rms'], unit, '.2g')} RMS beyond a vertical shift from "
             f"t = {big['t_a']:.3g} s to {big['t_b']:.3g} s, its output level moved by "
-            f"{amount_text(big['level_b'] - big['level_a'], unit, '.2g')}; no classical "
+            f"{amount_text(moved, unit, '.2g')} (loops' heights: "
+            f"{100 * lc['height_per_volt'] * moved:+.2g} % over that move); no classical "
             "(congruent) Preisach model does that - the actuator's loops change with its "
             "strain (non-congruence), or the sensor reads through a nonlinear curve (sensor "
             "nonlinearity), which these recordings cannot tell apart; to separate them: "
@@ -845,8 +849,12 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
             f"between the same inputs differ in shape by "
             f"{amount_text(lc['shape_rms'], unit, '.2g')} RMS ({lc['shape_noise_ratio']:.2g} x "
             f"the noise; one shape plus a shift against a shape per loop: F = {lc['F']:.3g}, "
-            f"p = {lc['p']:.2g}; bar p < {LOOP_ALPHA:g} and {LOOP_MIN_SHAPE:g} x the noise), "
-            "a test of Mayergoyz's congruency property that fits no model"
+            f"p = {lc['p']:.2g}; bar p < {LOOP_ALPHA:g} and {LOOP_MIN_SHAPE:g} x the noise) "
+            f"and in height by {100 * lc['height_per_volt']:+.3g} +/- "
+            f"{100 * lc['height_sd']:.2g} % per {unit} of output level (p = "
+            f"{lc['height_p']:.2g}, {100 * min(max(share, 0.0), 1.0):.0f} % of the shape "
+            f"difference; bar p < {LOOP_ALPHA:g} and {100 * LOOP_SCALE_SHARE:.0f} %), tests of "
+            "Mayergoyz's congruency property that fit no model"
         ),
         where=where_of([ctx.recs[i] for i in diag], [curves[i] for i in diag], ctx.u_span),
         parameters={

@@ -63,7 +63,12 @@ from typing import Any, Callable
 import numpy as np
 
 from .candidates import Candidate, DriftCandidate
-from .congruency import MinorLoopCheck, minor_loop_check, output_curve_check
+from .congruency import (
+    MinorLoopCheck,
+    loop_difference_text,
+    minor_loop_check,
+    output_curve_check,
+)
 from .context import Chain, Context, Fold
 from .drift import drift_refuted_by_holds
 from .holds import HoldEvidence, HoldPieces, hold_evidence, hold_pieces
@@ -287,14 +292,14 @@ def _loops_refute(
     the same way only when the base's loops agree.  Where the recordings repeat a minor loop
     - the CML experiment runs one at three output levels - a device whose loops change with
     the output level shows it there, whatever the weights.  When
-    the loops about the base agree in every fold (p >= :data:`LOOPS_AGREE_P`) and a fold's
-    fit makes them differ (the test passes on its residual: p < ``LOOP_ALPHA`` and a shape
-    of ``LOOP_MIN_SHAPE`` noise SDs), the fit predicts a difference the device does not
-    show: its gain elsewhere is a refit artefact, not the named physics (blind seed 31's null
-    009 was named non-congruence with a 19 % gain; its loops agree at p 0.98 and the fit of
-    one fold made them differ at p 2e-15).
+    the loops about the base agree in every fold (the shape and the height tests both at
+    p >= :data:`LOOPS_AGREE_P`) and a fold's fit makes them differ
+    (:meth:`~.congruency.MinorLoopCheck.passes` on its residual), the fit predicts a
+    difference the device does not show: its gain elsewhere is a refit artefact, not the
+    named physics (blind seed 31's null 009 was named non-congruence with a 19 % gain; its
+    loops agree at p 0.98 and the fit of one fold made them differ at p 2e-15).
     """
-    if not base or not all(b.pairs and b.p >= LOOPS_AGREE_P for b in base):
+    if not base or not all(b.agree(LOOPS_AGREE_P) for b in base):
         return None
     for k, ch in enumerate(chains):
         f = minor_loop_check(ctx, sigma, ch)
@@ -302,9 +307,10 @@ def _loops_refute(
             b = base[k]
             return (
                 f"the recorded minor loops between the same inputs are congruent ({len(b.pairs)} "
-                f"pair(s), p = {b.p:.2g}), but the fit on fold {k + 1} makes them differ in "
-                f"shape by {f.shape_rms / f.sigma:.2g} x the noise (p = {f.p:.2g}): it "
-                "predicts loops that change with the output level where the device's do not"
+                f"pair(s), p = {b.p:.2g}, heights p = {b.height_p:.2g}), but the fit on fold "
+                f"{k + 1} makes them differ in shape by {f.shape_rms / f.sigma:.2g} x the noise "
+                f"(p = {f.p:.2g}, heights p = {f.height_p:.2g}): it predicts loops that change "
+                "with the output level where the device's do not"
             )
     return None
 
@@ -580,17 +586,16 @@ def resolution_check(
             )
         elif found == "minor_loops":
             statement = (
-                f"{within}, but minor loops between the same inputs differ in shape beyond "
-                f"a vertical shift by {amount_text(lc.shape_rms, ctx.output_unit, '.2g')} RMS "
-                f"({lc.shape_rms / sigma:.2g} x the noise; F = {lc.F:.3g}, p = {lc.p:.2g} "
-                f"over {len(lc.pairs)} pair(s)), which no classical Preisach model does "
-                "(congruency): the loops change with the output level (non-congruence) or "
-                "the sensor reads through a nonlinear curve"
+                f"{within}, but minor loops between the same inputs differ beyond a "
+                f"vertical shift - {loop_difference_text(lc, ctx.output_unit)} - which no "
+                "classical Preisach model does (congruency): the loops change with the output "
+                "level (non-congruence) or the sensor reads through a nonlinear curve"
             )
         elif ok and lc.pairs:
             statement += (
                 f"; {len(lc.pairs)} pair(s) of repeated minor loops agree in shape up to a "
-                f"vertical shift (F = {lc.F:.3g}, p = {lc.p:.2g}), as a congruent model's do"
+                f"vertical shift (F = {lc.F:.3g}, p = {lc.p:.2g}) and in height (p = "
+                f"{lc.height_p:.2g}), as a congruent model's do"
             )
     report = {
         **chk.as_dict(),
