@@ -279,11 +279,12 @@ def test_a_sensor_curve_statement_names_non_congruence_beside_it():
     loop experiments: the statement names both and the experiment that separates them."""
     from types import SimpleNamespace
 
-    from preisach.diagnose.candidates import SensorNonlinearityCandidate
+    from preisach.diagnose.candidates import OutputCurveCandidate
 
     ctx = SimpleNamespace(y_lo=-3.5, y_hi=3.5, y_centre=0.0, y_half_span=3.5)
-    cand = SensorNonlinearityCandidate()
+    cand = OutputCurveCandidate()
+    assert cand.key == "non_congruence/output_curve"
     cand.prepare(ctx)
     text = cand.statement(np.array([0.02, -0.01]), None, ctx)
-    assert "the sensor is nonlinear" in text and "non-congruence" in text
+    assert "minor loops are not congruent" in text and "sensor nonlinearity" in text
     assert "same minor loop recorded at several output levels" in text

@@ -177,7 +177,7 @@ def test_non_congruence_named_on_a_saturating_interaction():
         model,
         recs,
         identification=ident,
-        candidates=["non_congruence", "gain_offset", "sensor_nonlinearity"],
+        candidates=["non_congruence", "gain_offset"],
         progress=False,
     )
     assert rep.verdict == "non_congruence", rep.summary()

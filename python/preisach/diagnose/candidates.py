@@ -13,7 +13,7 @@ scale, how to find starting values, and how to state its result in one line.  Th
 
 Chain: input side (``rate_dependence`` threshold dilation) -> Preisach operator (with the
 ``non_congruence`` output feedback) -> output side in this order: ``rate_dependence`` loop
-width, ``sensor_nonlinearity``, ``creep`` (material), ``structural_resonance`` (the beam),
+width, ``non_congruence`` (output curve), ``creep`` (material), ``structural_resonance`` (the beam),
 ``gain_offset`` (sensor calibration), ``delay`` (measurement chain), ``sensor_drift``
 (additive, last).
 """
@@ -888,12 +888,28 @@ class GainOffsetCandidate(Candidate):
         return f"{scale}{zero} from the model's: recalibrate the sensor or re-identify the model"
 
 
-class SensorNonlinearityCandidate(Candidate):
-    """A static nonlinear curve between the actuator output and the reading."""
+class OutputCurveCandidate(Candidate):
+    """Minor loops whose height changes with the output level: a static curve of the output.
 
-    name = "sensor_nonlinearity"
+    ``y = f(x)``, ``x`` a classical Preisach output and ``f`` its quadratic and cubic terms
+    (:class:`~preisach.diagnose.effects.LevelDependentGain`).  A product Preisach model - the
+    increments of a classical output scaled by a function of the output, ``dy = g(y) dx`` -
+    integrates to such a curve, electrostriction (strain quadratic in the polarisation) is
+    one, and so is a sensor that reads through a nonlinear curve: no recording by one sensor
+    tells them apart.  It is a form of ``non_congruence`` (key
+    ``non_congruence/output_curve``), as the same curve found beyond the fine classical model
+    is (``core._classical_curve``); its statement names the sensor beside it and the
+    experiment that separates them.  (Before 2026-11-27 it was an effect of its own,
+    ``sensor_nonlinearity``: the same evidence got two names by the path that found it.)
+    """
+
+    name = "non_congruence"
+    variant = "output_curve"
     order = 0
-    physics = "the sensor reads the output through a static nonlinear curve"
+    physics = (
+        "minor loops scale with the output level through a static curve (a product model, "
+        "electrostriction, or a sensor that reads through a nonlinear curve)"
+    )
     block_type = LevelDependentGain
 
     def prepare(self, ctx: Context) -> None:
@@ -919,13 +935,14 @@ class SensorNonlinearityCandidate(Candidate):
         lo = float(b.slope(ctx.y_lo + 0.1 * (ctx.y_hi - ctx.y_lo)))
         hi = float(b.slope(ctx.y_hi - 0.1 * (ctx.y_hi - ctx.y_lo)))
         return (
-            f"the sensor is nonlinear: its sensitivity changes from {lo:.4f} near the bottom to "
-            f"{hi:.4f} "
-            "near the top of the output range relative to the model; calibrate the sensor over its "
-            "range or keep the sensor-curve block. The same readings come from minor loops whose "
-            "height changes with the output level (non-congruence: electrostriction, a product "
-            "model); a calibrated sensor, or the same minor loop recorded at several output "
-            "levels, separates them"
+            f"minor loops are not congruent: their height changes with the output level by a "
+            f"static curve whose slope runs from {lo:.4f} near the bottom to {hi:.4f} near the "
+            "top of the output range relative to the model - the actuator's loops scale with "
+            "its strain (a product model, electrostriction), or the sensor reads through a "
+            "nonlinear curve (sensor nonlinearity), which these recordings cannot tell apart; "
+            "the same minor loop recorded at several output levels by a second, calibrated "
+            "sensor separates them. Keep the output-curve block (or calibrate the sensor over "
+            "its range if it is the sensor)"
         )
 
 

@@ -83,7 +83,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParse
         description="Simulate every recording through MODEL, analyse the residual (where, when, "
         "which band, what it follows), fit candidate physics blocks (rate dependence, structural "
         "resonance, "
-        "creep, delay, sensor drift, non-congruence, calibration, sensor nonlinearity) on training "
+        "creep, delay, sensor drift, non-congruence, calibration) on training "
         "blocks and keep those that lower the held-out error clearly beyond the noise.  Volts and "
         "seconds throughout.",
     )

@@ -218,8 +218,8 @@ def diagnose(
     candidates : sequence of str or Candidate, optional
         Which explanations to test; default all of :data:`~preisach.diagnose.CANDIDATES`.
         An effect name (``rate_dependence``, ``structural_resonance``, ``creep``, ``delay``,
-        ``sensor_drift``, ``non_congruence``, ``gain_offset``, ``sensor_nonlinearity``)
-        tests all its forms; one form is given by its key (e.g. ``delay/lagrange``).
+        ``sensor_drift``, ``non_congruence``, ``gain_offset``) tests all its forms; one
+        form is given by its key (e.g. ``delay/lagrange``, ``non_congruence/output_curve``).
     initial_states : sequence, optional
         One per recording: a :class:`~preisach.State` or ``"negative_saturation"``,
         ``"positive_saturation"``, ``"anhysteretic"``, ``"unknown"``, ``"burn_in"`` or

@@ -18,12 +18,12 @@ from .candidates import (
     ModeCandidate,
     ModeReactionCandidate,
     NonCongruenceCandidate,
+    OutputCurveCandidate,
     OutputLagCandidate,
     RateCandidate,
     RateLagCandidate,
     RateWidthCandidate,
     RelaxationCandidate,
-    SensorNonlinearityCandidate,
     ViscousCandidate,
 )
 from .rate_family import RateFamilyCandidate
@@ -49,7 +49,7 @@ CANDIDATES: dict[str, type[Candidate]] = {
         DriftCandidate,
         NonCongruenceCandidate,
         GainOffsetCandidate,
-        SensorNonlinearityCandidate,
+        OutputCurveCandidate,
     )
 }
 

@@ -110,12 +110,13 @@ FORM_BEYOND_CLASSICAL = 0.1
 #: 0.011-0.043 at p <= 0.0015 (seeds 18, 19, 21, 22).  A drift candidate kept by the
 #: selection still passes :data:`DRIFT_BEYOND_CLASSICAL`.
 RESOLUTION_BEYOND_CLASSICAL = 0.01
-#: the calibration forms: named only when with them the fine classical model is within the
-#: noise bound (a calibration is the whole of what the recordings lack)
-CALIBRATION_EFFECTS = frozenset({"gain_offset", "sensor_nonlinearity"})
+#: the static forms (keys): named only when with them the fine classical model is within the
+#: noise bound (a calibration, or a static curve of the output, is the whole of what the
+#: recordings lack)
+STATIC_FORMS = frozenset({"gain_offset", "non_congruence/output_curve"})
 #: the effects that make minor loops between the same inputs differ in shape: refuted by the
 #: recordings' own loops when those agree and the fit makes them differ (:func:`_loops_refute`)
-LOOP_EFFECTS = frozenset({"non_congruence", "sensor_nonlinearity"})
+LOOP_EFFECTS = frozenset({"non_congruence"})
 #: the recorded loops agree when the congruency test's p-value is at least this
 LOOPS_AGREE_P = 0.05
 
@@ -828,10 +829,10 @@ def run_selection(
                     "variance to that model on interleaved held-out stretches, < "
                     f"{FORM_BEYOND_CLASSICAL:g}, or p = {chk.p:.2g})"
                 )
-            elif cand.name in CALIBRATION_EFFECTS and chk.ratio_with > noise_ratio:
+            elif cand.key in STATIC_FORMS and chk.ratio_with > noise_ratio:
                 ok[name] = False
                 why[name] = (
-                    "implausible for its name: with the calibration a classical Preisach "
+                    "implausible for its name: with the static curve a classical Preisach "
                     f"model with free initial states still leaves {chk.ratio_with:.3g} x "
                     f"the noise on interleaved held-out stretches (bound {noise_ratio:g} "
                     "x): the recordings lack more than a calibration"
