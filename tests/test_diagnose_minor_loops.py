@@ -251,6 +251,9 @@ def test_a_cml_recording_names_what_the_refit_hides(stiffening):
         assert rep.verdict == "non_congruence", rep.summary()
         assert "-40 and 40 V" in rep.effects[0].statement, rep.effects[0].statement
         assert "sensor nonlinearity" in rep.effects[0].statement
+        h = rep.effects[0].parameters["height_per_volt"]  # shorter loops higher up
+        assert h["value"] + 3 * h["std"] < 0.0, h
+        assert "in height by" in rep.effects[0].evidence, rep.effects[0].evidence
     else:
         assert chk["minor_loops"]["p"] > LOOP_ALPHA, chk["minor_loops"]
         assert rep.verdict == "none", rep.summary()

@@ -415,18 +415,23 @@ class MinorLoopCheck:
         }
 
 
-def loop_difference_text(lc: MinorLoopCheck, unit: str = "V") -> str:
+def loop_difference_text(lc: dict[str, Any], unit: str = "V", bars: bool = False) -> str:
     """How the loops of a check differ, in words: the shape test and the height test.
 
-    ``unit``: the output's unit (the height changes per unit of output level).
+    ``lc``: :meth:`MinorLoopCheck.as_dict` of a check with pairs; ``unit``: the output's
+    unit (the height changes per unit of output level); ``bars``: state each test's bar.
     """
-    share = lc.height_share if math.isfinite(lc.height_share) else 0.0
+    share = lc["height_share"] or 0.0
+    shape_bar = f"; bar p < {LOOP_ALPHA:g} and {LOOP_MIN_SHAPE:g} x the noise" if bars else ""
+    height_bar = f"; bar p < {LOOP_ALPHA:g} and {100 * LOOP_SCALE_SHARE:.0f} %" if bars else ""
     return (
-        f"in shape by {amount_text(lc.shape_rms, unit, '.2g')} RMS "
-        f"({lc.shape_rms / lc.sigma:.2g} x the noise; F = {lc.F:.3g}, p = {lc.p:.2g} over "
-        f"{len(lc.pairs)} pair(s)), in height by {100 * lc.height_per_volt:+.3g} "
-        f"+/- {100 * lc.height_sd:.2g} % per {unit} of output level (p = {lc.height_p:.2g}; "
-        f"{100 * min(max(share, 0.0), 1.0):.0f} % of the shape difference)"
+        f"in shape by {amount_text(lc['shape_rms'], unit, '.2g')} RMS "
+        f"({lc['shape_noise_ratio']:.2g} x the noise; one shape plus a shift against a shape "
+        f"per loop over {lc['pairs']} pair(s): F = {lc['F']:.3g}, p = {lc['p']:.2g}"
+        f"{shape_bar}) and in height by {100 * lc['height_per_volt']:+.3g} +/- "
+        f"{100 * lc['height_sd']:.2g} % per {unit} of output level (p = "
+        f"{lc['height_p']:.2g}, {100 * min(max(share, 0.0), 1.0):.0f} % of the shape "
+        f"difference{height_bar})"
     )
 
 

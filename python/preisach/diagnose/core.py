@@ -19,7 +19,7 @@ from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
 from .candidates import Candidate, DriftCandidate
-from .congruency import LOOP_ALPHA, LOOP_MIN_SHAPE, LOOP_SCALE_SHARE
+from .congruency import loop_difference_text
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
@@ -827,7 +827,6 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
     diag = list(ctx.diag)
     unit = ctx.output_unit
     moved = big["level_b"] - big["level_a"]
-    share = lc["height_share"] or 0.0
     return EffectReport(
         name="non_congruence",
         statement=(
@@ -845,15 +844,8 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
         evidence=(
             f"a classical Preisach model on a {check['levels']}-level grid with free initial "
             f"states predicts interleaved {1e3 * check['stretch_s']:.0f} ms held-out stretches "
-            f"at {check['ratio']:.3g} x the noise, but {lc['pairs']} pair(s) of minor loops "
-            f"between the same inputs differ in shape by "
-            f"{amount_text(lc['shape_rms'], unit, '.2g')} RMS ({lc['shape_noise_ratio']:.2g} x "
-            f"the noise; one shape plus a shift against a shape per loop: F = {lc['F']:.3g}, "
-            f"p = {lc['p']:.2g}; bar p < {LOOP_ALPHA:g} and {LOOP_MIN_SHAPE:g} x the noise) "
-            f"and in height by {100 * lc['height_per_volt']:+.3g} +/- "
-            f"{100 * lc['height_sd']:.2g} % per {unit} of output level (p = "
-            f"{lc['height_p']:.2g}, {100 * min(max(share, 0.0), 1.0):.0f} % of the shape "
-            f"difference; bar p < {LOOP_ALPHA:g} and {100 * LOOP_SCALE_SHARE:.0f} %), tests of "
+            f"at {check['ratio']:.3g} x the noise, but the recordings' minor loops between "
+            f"the same inputs differ {loop_difference_text(lc, unit, bars=True)}, tests of "
             "Mayergoyz's congruency property that fit no model"
         ),
         where=where_of([ctx.recs[i] for i in diag], [curves[i] for i in diag], ctx.u_span),
@@ -862,6 +854,11 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
                 "value": float(lc["shape_rms"]),
                 "std": float("nan"),
                 "unit": unit or "V",
+            },
+            "height_per_volt": {  # a loop's relative height change per unit output level
+                "value": float(lc["height_per_volt"]),
+                "std": float(lc["height_sd"]),
+                "unit": f"1/{unit or 'V'}",
             },
             "peak_to_peak": _peak_to_peak(ctx, curves),
         },

@@ -588,7 +588,7 @@ def resolution_check(
         elif found == "minor_loops":
             statement = (
                 f"{within}, but minor loops between the same inputs differ beyond a "
-                f"vertical shift - {loop_difference_text(lc, ctx.output_unit)} - which no "
+                f"vertical shift {loop_difference_text(loops, ctx.output_unit)}, which no "
                 "classical Preisach model does (congruency): the loops change with the output "
                 "level (non-congruence) or the sensor reads through a nonlinear curve"
             )
