@@ -7,6 +7,8 @@ output levels, as the congruent-minor-loop (CML) experiment of thesis section 3.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from _inputs import legs, offset_loops
@@ -127,6 +129,30 @@ def test_a_drift_in_time_changes_the_shape_not_the_height(seed):
     lc = pooled_loop_check([(0, pr)], 1e-3)
     assert lc.p < LOOP_ALPHA and lc.shape_rms >= LOOP_MIN_SHAPE * 1e-3, lc
     assert lc.height_p > 0.01 and not lc.height_share >= 0.1, lc
+
+
+def test_a_height_change_the_shape_test_cannot_see_is_all_of_the_difference():
+    """A pair whose shapes differ by less than the noise's expectation, heights clearly.
+
+    The shape test's drop (5 noise variances over 9 parameters) is below what the noise alone
+    makes; the height's one parameter is at 5 standard deviations.  The height is then all
+    of the difference (share 1), not an undefined share that keeps it from being named.
+    Fails when the share is divided by a difference at or below zero.
+    """
+    from preisach.diagnose.congruency import LoopShape
+
+    s2, n, k, q = 1e-6, 1000, 20, 9
+    rss_own = (n - k) * s2
+    pr = LoopShape(
+        -1.0, 1.0, 0.0, 1.0, 0.0, 1.0, rss_own + 5 * s2, rss_own, q, n, k, 0.0,
+        np.arange(3, dtype=np.int64), np.zeros(3), 0.01, 0.25,
+    )  # fmt: skip
+    lc = pooled_loop_check([(0, pr)], 1e-3)
+    assert abs(lc.height_per_volt - 0.01) < 1e-12 and abs(lc.height_sd - 0.002) < 1e-9, lc
+    assert lc.height_p < 1e-5 and lc.height_share == 1.0, lc
+    assert lc.passes(), lc
+    null = pooled_loop_check([(0, replace(pr, scale=0.001))], 1e-3)  # z = 0.5
+    assert null.height_share == 0.0 and not null.passes(), null
 
 
 def _dip(u: np.ndarray) -> np.ndarray:

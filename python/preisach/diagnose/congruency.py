@@ -353,8 +353,9 @@ class MinorLoopCheck:
     ``height_per_volt`` (1/V) and ``height_sd``: the height test - loop B's height relative
     to loop A's, less one, as ``height_per_volt`` times the loops' output level difference
     (one coefficient for all pairs, as a static curve of the output makes to first order);
-    ``height_p`` its two-sided p-value; ``height_share`` the share of the shape differences
-    beyond the noise's that the change of height makes (NaN when there is none).
+    ``height_p`` its two-sided p-value; ``height_share`` (0 to 1) the share of the shape
+    differences beyond the noise's that the change of height makes (1 when the shape test
+    sees less beyond the noise than the height alone).
     """
 
     pairs: list[tuple[int, LoopShape]]  # (recording index, pair)
@@ -366,7 +367,7 @@ class MinorLoopCheck:
     height_per_volt: float = 0.0
     height_sd: float = float("inf")
     height_p: float = 1.0
-    height_share: float = float("nan")
+    height_share: float = 0.0
 
     def passes(self, alpha: float = LOOP_ALPHA, min_shape: float = LOOP_MIN_SHAPE) -> bool:
         """Whether the loops are not congruent, by either test.
@@ -411,7 +412,7 @@ class MinorLoopCheck:
             "height_per_volt": self.height_per_volt if self.pairs else None,
             "height_sd": self.height_sd if self.pairs else None,
             "height_p": self.height_p,
-            "height_share": self.height_share if math.isfinite(self.height_share) else None,
+            "height_share": self.height_share,
         }
 
 
@@ -421,7 +422,6 @@ def loop_difference_text(lc: dict[str, Any], unit: str = "V", bars: bool = False
     ``lc``: :meth:`MinorLoopCheck.as_dict` of a check with pairs; ``unit``: the output's
     unit (the height changes per unit of output level); ``bars``: state each test's bar.
     """
-    share = lc["height_share"] or 0.0
     shape_bar = f"; bar p < {LOOP_ALPHA:g} and {LOOP_MIN_SHAPE:g} x the noise" if bars else ""
     height_bar = f"; bar p < {LOOP_ALPHA:g} and {100 * LOOP_SCALE_SHARE:.0f} %" if bars else ""
     return (
@@ -430,7 +430,7 @@ def loop_difference_text(lc: dict[str, Any], unit: str = "V", bars: bool = False
         f"per loop over {lc['pairs']} pair(s): F = {lc['F']:.3g}, p = {lc['p']:.2g}"
         f"{shape_bar}) and in height by {100 * lc['height_per_volt']:+.3g} +/- "
         f"{100 * lc['height_sd']:.2g} % per {unit} of output level (p = "
-        f"{lc['height_p']:.2g}, {100 * min(max(share, 0.0), 1.0):.0f} % of the shape "
+        f"{lc['height_p']:.2g}, {100 * lc['height_share']:.0f} % of the shape "
         f"difference{height_bar})"
     )
 
@@ -490,10 +490,12 @@ def pooled_loop_check(pairs: list[tuple[int, LoopShape]], sigma: float) -> Minor
         sd = math.sqrt(s2 / w)
         zt = kappa / sd
         hp = float(2.0 * stats.t.sf(abs(zt), max(dof2, 1)))
-        excess = num / s2 - q  # the shape differences beyond the noise's, in noise variances
-        share = (zt * zt - 1.0) / excess if excess > 0 else float("nan")
+        # the height's part of the shape differences beyond the noise's (in noise variances);
+        # all of it when the shape test sees less than the height alone
+        height = zt * zt - 1.0
+        share = height / max(num / s2 - q, height) if height > 0 else 0.0
     else:
-        kappa, sd, hp, share = 0.0, float("inf"), 1.0, float("nan")
+        kappa, sd, hp, share = 0.0, float("inf"), 1.0, 0.0
     return MinorLoopCheck(
         pairs, float(F), (int(q), int(dof2)), p, rms, float(sigma), kappa, sd, hp, share
     )
