@@ -42,8 +42,8 @@ non-congruences show; a drift or creep changes a loop along its branches in time
 its height alone, so the height is named only when it makes most of the shape difference
 (:data:`LOOP_SCALE_SHARE`).  Measured with the given models on the seen blind cases of seeds
 27-34 (208 cases with CML recordings; docs/diagnosis.md section 5q): no null passes either
-test (height p >= 0.089 over 24); 24 of the 36 cases that carry a non-congruence pass, 19 by
-their shape - the height adds five, and no case of another kind; where a creep or a drift
+test (height p >= 0.089 over 24); 25 of the 36 cases that carry a non-congruence pass, 19 by
+their shape - the height adds six, and no case of another kind; where a creep or a drift
 made the height significant it made 2-32 % of the shape difference, two flicker drifts 51
 and 65 % (both passed by their shape anyway).
 """
@@ -75,9 +75,9 @@ __all__ = [
     "loop_difference_text",
     "loop_shapes",
     "minor_loop_check",
-    "pooled_loop_check",
     "output_curve_check",
     "output_level",
+    "pooled_loop_check",
 ]
 
 #: Level of the minor-loop test (:func:`minor_loop_check`): an F-test exact under congruency.
@@ -253,7 +253,9 @@ def loop_shapes(
     loop is read as a cubic B-spline of the input over the loops' common range (one knot
     interval per ``4 * min_samples`` samples of the shorter branch, 2 to 12), twice: one
     spline per branch shared by both loops plus one vertical shift (a classical model's
-    loops differ by no more), and one spline per branch and loop.  Samples of input holds
+    loops differ by no more), and one spline per branch and loop; and loop B's height
+    against A's (:attr:`LoopShape.scale`: the first model plus the shared shape of ``y``
+    centred on B).  Samples of input holds
     are left out; pairs with fewer than ``min_samples`` samples on a branch are skipped.
     """
     t, u, e = (np.asarray(a, dtype=float) for a in (t, u, e))
