@@ -301,11 +301,12 @@ def loop_shapes(
             same[rows, -1] = float(b % 2)  # loop B
             row += p.size
         c_own, *_ = np.linalg.lstsq(own, target, rcond=None)
-        c_same, *_ = np.linalg.lstsq(same, target, rcond=None)
+        # the shared model of the difference and of the output level, one solve
+        rhs = np.column_stack([target, np.concatenate([level[p] for p in parts])])
+        c_same, c_lvl = np.linalg.lstsq(same, rhs, rcond=None)[0].T
         # loop B's height against A's: the output's shared shape, centred on B, as one more
         # column (its part the shared model makes is taken out: Frisch-Waugh-Lovell)
         on_b = same[:, -1] > 0
-        c_lvl, *_ = np.linalg.lstsq(same, np.concatenate([level[p] for p in parts]), rcond=None)
         shape = same[:, :-1] @ c_lvl[:-1]
         z = np.where(on_b, shape - shape[on_b].mean(), 0.0)
         z -= same @ np.linalg.lstsq(same, z, rcond=None)[0]

@@ -73,10 +73,14 @@ SEPARATING: dict[frozenset[str], str] = {
     "the end of a run (a drift moves it, non-congruence does not)",
     frozenset({"delay", "creep"}): "a step-and-hold (a delay is over within milliseconds, creep "
     "goes on for seconds)",
-    frozenset({"non_congruence", "sensor_nonlinearity"}): "the same minor loop at several "
-    "output levels read by a second, calibrated sensor (a sensor curve is the reading's; "
-    "non-congruence changes the actuator's own loops)",
 }
+
+#: What separates the actuator's non-congruence from a nonlinear sensor curve, the two readings
+#: of the one form ``non_congruence/output_curve`` (not two effect names, so not in SEPARATING).
+ACTUATOR_OR_SENSOR = (
+    "the same minor loop at several output levels read by a second, calibrated sensor (a "
+    "sensor curve is the reading's; non-congruence changes the actuator's own loops)"
+)
 
 
 def separating_experiment(a: str, b: str) -> str:
@@ -784,7 +788,7 @@ def _classical_curve(
             "model does - the actuator's loops scale with its strain (non-congruence, e.g. a "
             "product model), or the sensor reads through a nonlinear curve (sensor "
             "nonlinearity), which these recordings cannot tell apart; to separate them: "
-            f"{separating_experiment('non_congruence', 'sensor_nonlinearity')}"
+            f"{ACTUATOR_OR_SENSOR}"
         ),
         evidence=(
             f"a classical Preisach model on a {check['levels']}-level grid with free initial "
@@ -839,7 +843,7 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
             "(congruent) Preisach model does that - the actuator's loops change with its "
             "strain (non-congruence), or the sensor reads through a nonlinear curve (sensor "
             "nonlinearity), which these recordings cannot tell apart; to separate them: "
-            f"{separating_experiment('non_congruence', 'sensor_nonlinearity')}"
+            f"{ACTUATOR_OR_SENSOR}"
         ),
         evidence=(
             f"a classical Preisach model on a {check['levels']}-level grid with free initial "
