@@ -37,6 +37,7 @@ from .report import (
     DiagnosisReport,
     EffectReport,
     candidate_table,
+    nearest_rejected,
     output_unit,
     unexplained_of,
     where_of,
@@ -1010,6 +1011,13 @@ def _report(
         if motion is not None and motion.moves and effects is final.effects:
             unexplained["holds"] = motion.as_dict()
             unexplained["statement"] += f"; {motion.statement()}"
+        near = nearest_rejected(steps[-1]) if steps else []
+        if near:
+            unexplained["nearest"] = near
+            unexplained["statement"] += "; nearest, not named: " + "; ".join(
+                f"{o['effect']} ({100 * o['gain']:.0f} % lower held-out RMSE, but {o['why_not']})"
+                for o in near
+            )
     verdict = effects[0].name if effects else ("none" if consistent else "unexplained")
     aug.metadata["diagnosis"]["verdict"] = verdict
     notes = [

@@ -217,7 +217,7 @@ class HoldMotion:
             return self.describe()
         return (
             f"{self.describe()}; no rate-independent model moves while the input holds, and "
-            "no candidate predicted it on held-out data"
+            "no candidate predicted it on held-out data with a fit that fits its name"
         )
 
     def describe(self) -> str:

@@ -438,6 +438,29 @@ def unexplained_of(
     }
 
 
+#: how the selection words a qualifying fit that contradicts its name
+#: (:func:`~preisach.diagnose.selection.run_selection`)
+IMPLAUSIBLE = "implausible for its name: "
+
+
+def nearest_rejected(step: StepResult, n: int = 2) -> list[dict[str, Any]]:
+    """Return the ``n`` best fits of a selection step that were not named for their parameters.
+
+    A candidate whose fit lowered the held-out error by the gain and significance a kept
+    effect needs, but contradicts its name (a mode that does not ring, an after-effect over
+    within a second), is the nearest explanation of a residual nothing explains: the user is
+    told what predicted it and why it was not named.  One per effect name, best gain first.
+    """
+    out: list[dict[str, Any]] = []
+    for key in sorted(step.reasons, key=lambda k: -step.gains[k]):
+        name = key.split("/")[0]
+        why = step.reasons[key]
+        if why.startswith(IMPLAUSIBLE) and all(o["effect"] != name for o in out):
+            why = why[len(IMPLAUSIBLE) :]
+            out.append({"effect": name, "form": key, "gain": step.gains[key], "why_not": why})
+    return out[:n]
+
+
 def candidate_table(steps: list[StepResult]) -> list[dict[str, Any]]:
     """One row per candidate and selection step."""
     rows = []
