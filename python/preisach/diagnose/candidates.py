@@ -809,6 +809,25 @@ class CreepCandidate(Candidate):
 
         return creep_implausible(ctx, self.taus, x[1:], float(x[0]))
 
+    def bank_columns(self, ctx: Context) -> list[Array]:
+        """Return each relaxation mode's ``L_i x - x`` of the given model's output, per recording.
+
+        One column per time constant of the bank (:class:`~.effects.PronyCreep` with that
+        mode alone, settled at the recording's first sample), ``x`` the given model's
+        Preisach output (V): what the modes add to a classical output, free in sign, for
+        :func:`~.scoring.beyond_classical`.
+        """
+        out = []
+        for i, r in enumerate(ctx.recs):
+            x = np.asarray(ctx.preisach(i, ctx.given))
+            cols = []
+            for tau in self.taus:
+                blk = PronyCreep(r.dt, taus=[tau], weights=[1.0], gain=1.0)
+                blk.reset(float(x[0]))
+                cols.append(np.asarray(blk.run(x)) - x)
+            out.append(np.column_stack(cols))
+        return out
+
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         c = x[1:]
         parts = ", ".join(
