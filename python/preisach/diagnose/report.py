@@ -16,6 +16,7 @@ from scipy import signal
 from .._io import write_text
 from .augmented import AugmentedModel
 from .locate import ResidualAnalysis, display_unit, motion_features
+from .selection import IMPLAUSIBLE
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -436,11 +437,6 @@ def unexplained_of(
         "where": where,
         "follows": follows,
     }
-
-
-#: how the selection words a qualifying fit that contradicts its name
-#: (:func:`~preisach.diagnose.selection.run_selection`)
-IMPLAUSIBLE = "implausible for its name: "
 
 
 def nearest_rejected(step: StepResult, n: int = 2) -> list[dict[str, Any]]:

@@ -41,7 +41,9 @@ Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing descriptio
    its coefficients (the Everett family, the calibrations:
    :meth:`~.candidates.Candidate.classical_columns`) qualifies only when those columns also
    add :data:`FORM_BEYOND_CLASSICAL` noise variances to the resolution check's fine
-   classical model (:func:`~.scoring.beyond_classical`), as a drift must.  An effect that
+   classical model (:func:`~.scoring.beyond_classical`), as a drift must; so does creep's
+   relaxation bank, unless the held-out holds show the creep (:func:`_creep_within_classical`).
+   An effect that
    makes minor loops differ with the output level (non-congruence, a sensor curve) is
    refuted where the recordings repeat a minor loop whose copies agree and its fit makes
    them differ (:func:`_loops_refute`).
@@ -84,6 +86,9 @@ from .scoring import (
     sign_flip_p,
 )
 
+#: how a step words a qualifying fit whose parameters contradict its name (the report names
+#: the best such fits of an unexplained residual: :func:`~.report.nearest_rejected`)
+IMPLAUSIBLE = "implausible for its name: "
 #: the finer grid a refitted base is tried on when the model's grid leaves too much
 FINE_LEVELS = 41
 #: the firmer ridge (relative to the mean diagonal of the normal matrix) those bases get
@@ -793,7 +798,7 @@ def run_selection(
                     # the same ringing mode found on disjoint halves of the data
                     why_ring[name] = f"{bad}; but {by_ring[name]}"
                 elif bad:
-                    reasons.append(f"implausible for its name: {bad}")
+                    reasons.append(f"{IMPLAUSIBLE}{bad}")
             ok[name] = not reasons
             why[name] = (
                 "; ".join(reasons)
@@ -818,7 +823,7 @@ def run_selection(
                 if share > 0.5 and not beats:
                     ok[name] = False
                     why[name] = (
-                        f"implausible for its name: the drift follows the input steps "
+                        f"{IMPLAUSIBLE}the drift follows the input steps "
                         f"({100 * share:.0f} % of its variance is a slow response to the "
                         "output's moves) and creep explains the held-out data as well"
                     )
@@ -838,7 +843,7 @@ def run_selection(
                 if not drift_check.passes(DRIFT_BEYOND_CLASSICAL, alpha):
                     ok[name] = False
                     why[name] = (
-                        "implausible for its name: a classical Preisach model with free "
+                        f"{IMPLAUSIBLE}a classical Preisach model with free "
                         f"initial states explains what the drift does (the drift adds "
                         f"{drift_check.gain:.2f} x the noise variance on interleaved held-out "
                         f"stretches, < {DRIFT_BEYOND_CLASSICAL:g}, or p = {drift_check.p:.2g})"
@@ -863,7 +868,7 @@ def run_selection(
             if not chk.passes(FORM_BEYOND_CLASSICAL, alpha):
                 ok[name] = False
                 why[name] = (
-                    "implausible for its name: a classical Preisach model with free initial "
+                    f"{IMPLAUSIBLE}a classical Preisach model with free initial "
                     f"states explains what it does (its form adds {chk.gain:.2f} x the noise "
                     "variance to that model on interleaved held-out stretches, < "
                     f"{FORM_BEYOND_CLASSICAL:g}, or p = {chk.p:.2g})"
@@ -871,7 +876,7 @@ def run_selection(
             elif cand.key in STATIC_FORMS and chk.ratio_with > noise_ratio:
                 ok[name] = False
                 why[name] = (
-                    "implausible for its name: with the static curve a classical Preisach "
+                    f"{IMPLAUSIBLE}with the static curve a classical Preisach "
                     f"model with free initial states still leaves {chk.ratio_with:.3g} x "
                     f"the noise on interleaved held-out stretches (bound {noise_ratio:g} "
                     "x): the recordings lack more than a calibration"
@@ -894,7 +899,7 @@ def run_selection(
                 bad = drift_refuted_by_holds(ctx, new_chains[name], sigma)
                 if bad:
                     ok[name] = False
-                    why[name] = f"implausible for its name: {bad}"
+                    why[name] = f"{IMPLAUSIBLE}{bad}"
         # creep is named for motion no classical model makes (_creep_within_classical)
         for name in creeps:
             cand = remaining[name]
@@ -904,7 +909,7 @@ def run_selection(
                 )
                 if bad:
                     ok[name] = False
-                    why[name] = f"implausible for its name: {bad}"
+                    why[name] = f"{IMPLAUSIBLE}{bad}"
         # an effect that breaks congruency must not make the recorded minor loops differ
         # where they agree (_loops_refute)
         base_loops: list[MinorLoopCheck] | None = None
@@ -915,7 +920,7 @@ def run_selection(
                 bad = _loops_refute(ctx, sigma, base_loops, new_chains[name])
                 if bad:
                     ok[name] = False
-                    why[name] = f"implausible for its name: {bad}"
+                    why[name] = f"{IMPLAUSIBLE}{bad}"
         quals = [n for n in scores if ok[n]]
         chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
         if progress:
