@@ -342,8 +342,9 @@ def _creep_within_classical(
     linear form must.  A slow wander of the output that the bank's slowest mode happens to fit
     fails both (blind seed 36's case 004, a random-walk sensor offset, and seed 37's 001, a
     1/f wander, were named creep with 83-91 % of the bank's weight in its 20 s mode: within
-    the holds p 0.9 and 0.4, beyond the fine model 0.035 and 0.003 noise variances; the
-    seen true creeps named by the selection add 0.15-48 or show in the holds at p <= 0.004).
+    the holds p 0.9 and 0.4, beyond the fine model 0.035 and 0.003 noise variances; every
+    creep the selection named on seen seeds 33-37 adds 0.23-35 or shows in the holds at
+    p <= 0.004).
     """
     if held is not None and held.n_pieces >= HOLD_MIN_PIECES and held.p_value < alpha:
         return None
