@@ -162,6 +162,31 @@ def test_keyboard_interrupt_requests_a_stop_and_finishes_the_file(model, tmp_pat
     assert rec.u[-1] == 0.0
 
 
+def test_a_ctrl_c_at_the_first_sample_still_finishes_the_file(model, tmp_path, sigint_raises):
+    """Ctrl-C from the first callback, while ``Thread.start`` may still wait for the worker.
+
+    The worker used to begin the trial at once, so an interrupt that reached the calling thread
+    before it entered its ``try`` escaped with the output live (a fresh CI run under load
+    aborted so).  Fails when that window opens again: the interrupt then escapes as a bare
+    ``KeyboardInterrupt`` instead of :class:`TrialInterrupted` with a complete file.
+    """
+    for k in range(20):
+        rig = daq.virtual_ss15(model)
+
+        def ctl(i, t, y):
+            if i == 0:
+                _thread.interrupt_main()
+            return 30.0
+
+        path = tmp_path / f"first{k}.csv"
+        with pytest.raises(TrialInterrupted) as info:
+            daq.run_trial(rig, daq.CallbackController(ctl, 10**6), path, sample_time=TS, poll=0.01)
+        res = info.value.result
+        assert res.end_status == "interrupted", res
+        rec = Recording.load(path)
+        assert len(rec) == res.samples + res.ramp_samples and rec.u[-1] == 0.0
+
+
 def test_progress_callback_error_stops_the_worker_and_finishes_the_file(model, tmp_path):
     rig = daq.virtual_ss15(model)
     seen = []

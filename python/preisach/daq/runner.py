@@ -200,8 +200,16 @@ def run_trial(
     runner = _core.DaqTrialRunner()
     box: dict[str, Any] = {}
     done = threading.Event()
+    # The worker starts the trial only once this thread waits in the ``try`` below: a Ctrl-C
+    # arriving while ``Thread.start`` still waits for the thread must not escape with the
+    # output live (the worker's own callback can interrupt this thread from sample one).
+    go = threading.Event()
 
     def work() -> None:
+        go.wait()
+        if "cancelled" in box:  # stopped before the trial began: nothing to drive or write
+            done.set()
+            return
         try:
             box["result"] = runner.run(
                 device,
@@ -234,6 +242,9 @@ def run_trial(
 
     def finish() -> None:
         # Wait for the worker to ramp the output down and close the file, whatever happens.
+        if not go.is_set():  # the trial never began: let the worker return at once
+            box["cancelled"] = True
+            go.set()
         while not done.is_set():
             try:
                 done.wait(0.05)
@@ -242,6 +253,7 @@ def run_trial(
         worker.join()
 
     try:
+        go.set()
         while not done.wait(poll):
             if progress is not None:
                 progress(runner.progress, runner.planned)
@@ -256,6 +268,8 @@ def run_trial(
         finish()
         raise
     worker.join()
+    if "cancelled" in box:  # Ctrl-C before the trial began: no sample was driven or written
+        raise KeyboardInterrupt("interrupted before the trial began")
     if "error" in box:
         raise box["error"]
     result = TrialResult._from_core(box["result"])
