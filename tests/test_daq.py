@@ -3,6 +3,7 @@
 import _thread
 import math
 import signal
+import threading
 import time
 
 import numpy as np
@@ -185,6 +186,37 @@ def test_a_ctrl_c_at_the_first_sample_still_finishes_the_file(model, tmp_path, s
         assert res.end_status == "interrupted", res
         rec = Recording.load(path)
         assert len(rec) == res.samples + res.ramp_samples and rec.u[-1] == 0.0
+
+
+@pytest.mark.parametrize("started", [True, False])
+def test_a_ctrl_c_while_the_worker_starts_drives_nothing_and_leaves_no_thread(
+    model, tmp_path, monkeypatch, started
+):
+    """Ctrl-C inside ``Thread.start`` (after the thread began, or before): nothing is driven.
+
+    ``start`` once ran before the runner's ``try``: an interrupt there escaped and left the
+    worker waiting for its go-ahead forever.  Fails if the worker survives, or if a sample was
+    driven or written.
+    """
+
+    class Interrupted(threading.Thread):
+        def start(self) -> None:
+            if started:
+                super().start()
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(daq.runner.threading, "Thread", Interrupted)
+    rig = daq.virtual_ss15(model)
+    path = tmp_path / "never.csv"
+    with pytest.raises(KeyboardInterrupt, match="before the trial began"):
+        daq.run_trial(rig, np.full(100, 30.0), path, sample_time=TS)
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline and any(
+        t.name == "preisach-trial" for t in threading.enumerate()
+    ):
+        time.sleep(0.01)
+    assert not any(t.name == "preisach-trial" for t in threading.enumerate())
+    assert not path.exists()
 
 
 def test_progress_callback_error_stops_the_worker_and_finishes_the_file(model, tmp_path):

@@ -238,13 +238,18 @@ def run_trial(
     # thread marked finished while it still runs (CPython gh-90882).
     worker = threading.Thread(target=work, name="preisach-trial", daemon=True)
     interrupted = False
-    worker.start()
+
+    def cancelled() -> bool:
+        # Whether the trial had not begun; if so, let the worker (if it runs at all) return
+        # at once, having driven and written nothing.
+        if go.is_set():
+            return False
+        box["cancelled"] = True
+        go.set()
+        return True
 
     def finish() -> None:
         # Wait for the worker to ramp the output down and close the file, whatever happens.
-        if not go.is_set():  # the trial never began: let the worker return at once
-            box["cancelled"] = True
-            go.set()
         while not done.is_set():
             try:
                 done.wait(0.05)
@@ -253,23 +258,26 @@ def run_trial(
         worker.join()
 
     try:
+        worker.start()  # a Ctrl-C may land while it waits for the thread to start
         go.set()
         while not done.wait(poll):
             if progress is not None:
                 progress(runner.progress, runner.planned)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP as a StopSignal
+        if cancelled():
+            raise KeyboardInterrupt("interrupted before the trial began") from exc
         interrupted = True
         runner.request_stop(str(exc) or "interrupted by the user (KeyboardInterrupt)")
         finish()
     except BaseException as exc:
+        if cancelled():
+            raise
         # The progress callback (or anything else in this thread) failed: never leave the
         # worker running with the output live - stop it, let it finish the file, re-raise.
         runner.request_stop(f"stopped: {type(exc).__name__} in the calling thread: {exc}")
         finish()
         raise
     worker.join()
-    if "cancelled" in box:  # Ctrl-C before the trial began: no sample was driven or written
-        raise KeyboardInterrupt("interrupted before the trial began")
     if "error" in box:
         raise box["error"]
     result = TrialResult._from_core(box["result"])
