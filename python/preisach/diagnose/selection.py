@@ -322,6 +322,22 @@ def _loops_refute(
     return None
 
 
+def _refuse(ok: dict[str, bool], why: dict[str, str], name: str, bad: str | None) -> None:
+    """Refuse a qualifying fit whose parameters or evidence do not fit its name (``bad``)."""
+    if bad:
+        ok[name] = False
+        why[name] = f"{IMPLAUSIBLE}{bad}"
+
+
+def _within_classical(what: str, chk: BeyondClassical, bar: float = FORM_BEYOND_CLASSICAL) -> str:
+    """Say that the fine classical model explains what ``what`` does (short of ``bar``)."""
+    return (
+        f"a classical Preisach model with free initial states explains what it does ({what} "
+        f"adds {chk.gain:.2f} x the noise variance to that model on interleaved held-out "
+        f"stretches, < {bar:g}, or p = {chk.p:.2g})"
+    )
+
+
 def _creep_within_classical(
     ctx: Context,
     cand: CreepCandidate,
@@ -355,10 +371,8 @@ def _creep_within_classical(
     if held is not None:
         holds = f"the held-out holds do not show it ({held.statement()})"
     return (
-        f"{holds}, and a classical Preisach model with free initial states explains what it "
-        f"does (its relaxation modes add {chk.gain:.2f} x the noise variance to that model on "
-        f"interleaved held-out stretches, < {FORM_BEYOND_CLASSICAL:g}, or p = {chk.p:.2g}): "
-        "a slow wander of the output, not a response to the input's moves"
+        f"{holds}, and {_within_classical('its relaxation modes', chk)}: a slow wander of the "
+        "output, not a response to the input's moves"
     )
 
 
@@ -387,11 +401,8 @@ def _feedback_within_classical(
     if chk.passes(FORM_BEYOND_CLASSICAL, alpha):
         return None
     return (
-        "a classical Preisach model with free initial states explains what it does (the "
-        f"fitted feedback's contribution adds {chk.gain:.2f} x the noise variance to that "
-        f"model on interleaved held-out stretches, < {FORM_BEYOND_CLASSICAL:g}, or p = "
-        f"{chk.p:.2g}): the base's resolution or its initial states, not loops that change "
-        "with the output level"
+        f"{_within_classical('the fitted feedback', chk)}: the base's resolution or its "
+        "initial states, not loops that change with the output level"
     )
 
 
@@ -856,11 +867,13 @@ def run_selection(
                 )
                 share = max(ctx.drift_step_share(ch) for ch in new_chains[name])
                 if share > 0.5 and not beats:
-                    ok[name] = False
-                    why[name] = (
-                        f"{IMPLAUSIBLE}the drift follows the input steps "
-                        f"({100 * share:.0f} % of its variance is a slow response to the "
-                        "output's moves) and creep explains the held-out data as well"
+                    _refuse(
+                        ok,
+                        why,
+                        name,
+                        f"the drift follows the input steps ({100 * share:.0f} % of its "
+                        "variance is a slow response to the output's moves) and creep "
+                        "explains the held-out data as well",
                     )
         # a drift is named only for what the input history cannot explain: a classical
         # model on a fine grid whose initial states are free (they change the output until
@@ -876,12 +889,11 @@ def run_selection(
                 if drift_check is None:
                     drift_check = _drift_beyond_classical(ctx, sigma, seed=len(steps))
                 if not drift_check.passes(DRIFT_BEYOND_CLASSICAL, alpha):
-                    ok[name] = False
-                    why[name] = (
-                        f"{IMPLAUSIBLE}a classical Preisach model with free "
-                        f"initial states explains what the drift does (the drift adds "
-                        f"{drift_check.gain:.2f} x the noise variance on interleaved held-out "
-                        f"stretches, < {DRIFT_BEYOND_CLASSICAL:g}, or p = {drift_check.p:.2g})"
+                    _refuse(
+                        ok,
+                        why,
+                        name,
+                        _within_classical("the drift", drift_check, DRIFT_BEYOND_CLASSICAL),
                     )
         # an effect whose form is linear in its coefficients is named only for what no
         # classical model makes: its own columns must add FORM_BEYOND_CLASSICAL to the fine
@@ -901,20 +913,16 @@ def run_selection(
                 continue
             chk = beyond_classical(ctx, sigma, form[0], seed=len(steps), penalty=form[1])
             if not chk.passes(FORM_BEYOND_CLASSICAL, alpha):
-                ok[name] = False
-                why[name] = (
-                    f"{IMPLAUSIBLE}a classical Preisach model with free initial "
-                    f"states explains what it does (its form adds {chk.gain:.2f} x the noise "
-                    "variance to that model on interleaved held-out stretches, < "
-                    f"{FORM_BEYOND_CLASSICAL:g}, or p = {chk.p:.2g})"
-                )
+                _refuse(ok, why, name, _within_classical("its form", chk))
             elif cand.key in STATIC_FORMS and chk.ratio_with > noise_ratio:
-                ok[name] = False
-                why[name] = (
-                    f"{IMPLAUSIBLE}with the static curve a classical Preisach "
-                    f"model with free initial states still leaves {chk.ratio_with:.3g} x "
-                    f"the noise on interleaved held-out stretches (bound {noise_ratio:g} "
-                    "x): the recordings lack more than a calibration"
+                _refuse(
+                    ok,
+                    why,
+                    name,
+                    f"with the static curve a classical Preisach model with free initial "
+                    f"states still leaves {chk.ratio_with:.3g} x the noise on interleaved "
+                    f"held-out stretches (bound {noise_ratio:g} x): the recordings lack more "
+                    "than a calibration",
                 )
         # rate dependence is named only when no linear block after the hysteresis with as few
         # parameters predicts the held-out data as well (linear_block.rate_not_shown)
@@ -931,30 +939,31 @@ def run_selection(
         # a drift must show where the input cannot act: the output moves through the holds
         for name in scores:
             if ok[name] and isinstance(remaining[name], DriftCandidate):
-                bad = drift_refuted_by_holds(ctx, new_chains[name], sigma)
-                if bad:
-                    ok[name] = False
-                    why[name] = f"{IMPLAUSIBLE}{bad}"
+                _refuse(ok, why, name, drift_refuted_by_holds(ctx, new_chains[name], sigma))
         # so is a feedback of the output (_feedback_within_classical)
         for name in scores:
             cand = remaining[name]
             if ok[name] and ctx.refit and cand.side == "feedback":
-                bad = _feedback_within_classical(
-                    ctx, cand, new_chains[name][0], sigma, alpha, seed=len(steps)
+                _refuse(
+                    ok,
+                    why,
+                    name,
+                    _feedback_within_classical(
+                        ctx, cand, new_chains[name][0], sigma, alpha, seed=len(steps)
+                    ),
                 )
-                if bad:
-                    ok[name] = False
-                    why[name] = f"{IMPLAUSIBLE}{bad}"
         # creep is named for motion no classical model makes (_creep_within_classical)
         for name in creeps:
             cand = remaining[name]
             if ok[name] and ctx.refit and name not in by_holds and isinstance(cand, CreepCandidate):
-                bad = _creep_within_classical(
-                    ctx, cand, held.get(name), sigma, alpha, seed=len(steps)
+                _refuse(
+                    ok,
+                    why,
+                    name,
+                    _creep_within_classical(
+                        ctx, cand, held.get(name), sigma, alpha, seed=len(steps)
+                    ),
                 )
-                if bad:
-                    ok[name] = False
-                    why[name] = f"{IMPLAUSIBLE}{bad}"
         # an effect that breaks congruency must not make the recorded minor loops differ
         # where they agree (_loops_refute)
         base_loops: list[MinorLoopCheck] | None = None
@@ -962,10 +971,7 @@ def run_selection(
             if ok[name] and remaining[name].name in LOOP_EFFECTS:
                 if base_loops is None:
                     base_loops = [minor_loop_check(ctx, sigma, ch) for ch in chains]
-                bad = _loops_refute(ctx, sigma, base_loops, new_chains[name])
-                if bad:
-                    ok[name] = False
-                    why[name] = f"{IMPLAUSIBLE}{bad}"
+                _refuse(ok, why, name, _loops_refute(ctx, sigma, base_loops, new_chains[name]))
         quals = [n for n in scores if ok[n]]
         chosen = _choose(quals, scores, n_par, tie_alpha, seed=len(steps)) if quals else None
         if progress:
