@@ -7,7 +7,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Callable, TypeVar, Union, cast
 
@@ -54,12 +54,12 @@ from .selection import (
     run_selection,
 )
 
-__all__ = ["diagnose", "separating_experiment"]
+__all__ = ["diagnose", "rival_statement", "separating_experiment"]
 
 #: The experiment that tells two explanations apart (unordered pairs of effect names).
 SEPARATING: dict[frozenset[str], str] = {
-    frozenset({"creep", "sensor_drift"}): "a step-and-hold (creep follows the step and settles; "
-    "a drift goes on regardless of the input)",
+    frozenset({"creep", "sensor_drift"}): "a step-and-hold longer than the slow motion (creep "
+    "follows the step and settles; a drift goes on regardless of the input)",
     frozenset({"delay", "rate_dependence"}): "the same loop at several drive frequencies with "
     "sharp reversals (a delay shifts the whole output in time; rate dependence widens the loops "
     "with the rate)",
@@ -91,6 +91,55 @@ def separating_experiment(a: str, b: str) -> str:
         "experiments that excite one of them alone (steps and holds, several rates, several "
         "output levels)",
     )
+
+
+#: Share of the kept effect's held-out gain above which the best other name is reported as
+#: nearly as good (with the experiment that separates the two).
+NEARLY_AS_GOOD = 0.8
+
+
+def rival_statement(
+    step: StepResult, key: str, names: Mapping[str, str], *, seed: int = 0
+) -> tuple[str, dict[str, str] | None]:
+    """Say what the kept candidate ``key``'s evidence tells of the other names at its step.
+
+    ``step`` is the selection step that kept it (scores with held-out block errors, gains,
+    whether each qualifies, parameter counts), ``names`` the effect name of every candidate
+    key.  A qualifying candidate of another name that is not significantly worse (one-sided
+    sign-flip test over the held-out blocks, p >= 0.05) makes the choice ``AMBIGUOUS``; else
+    the best other name with at least :data:`NEARLY_AS_GOOD` of the gain is reported as
+    nearly as good.  Either way the text names the experiment that separates the two
+    (:func:`separating_experiment`).  Returns the text (empty, or starting with "; ") and,
+    when ambiguous, the report's ``{"effect", "rival", "experiment"}`` entry.
+    """
+    name, sc, gain = names[key], step.scores[key], step.gains[key]
+    others = sorted(
+        (n for n in step.scores if names[n] != name and step.gains[n] > 0),
+        key=lambda n: -step.gains[n],
+    )
+    rivals = [
+        n
+        for n in others
+        if step.qualifies[n]
+        and sign_flip_p(step.scores[n].sse_blocks - sc.sse_blocks, seed=seed) >= 0.05
+    ]
+    if rivals:
+        r = rivals[0]
+        how = separating_experiment(name, names[r])
+        text = (
+            f"; AMBIGUOUS: {r} explains the data equally well within the noise "
+            f"({100 * step.gains[r]:.0f} % lower, {step.n_params[r]:.3g} parameters; sign-flip "
+            f"p >= 0.05); to separate {name} from {names[r]}: {how}"
+        )
+        return text, {"effect": name, "rival": names[r], "experiment": how}
+    if others and step.gains[others[0]] > NEARLY_AS_GOOD * gain:
+        o = others[0]
+        return (
+            f"; also nearly as good: {o} ({100 * step.gains[o]:.0f} % lower, "
+            f"{step.n_params[o]:.3g} parameters); to separate {name} from {names[o]}: "
+            f"{separating_experiment(name, names[o])}"
+        ), None
+    return "", None
 
 
 RecordingLike = Union[Recording, str, "os.PathLike[str]"]
@@ -553,32 +602,10 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
         bad = final_implausible(ctx, cand, chain, st, key, sel.holds)
         if bad:
             ev += f"; CAUTION: the fit on all usable samples is implausible for its name: {bad}"
-        others = sorted(
-            (n for n in st.scores if by_key[n].name != name and st.gains[n] > 0),
-            key=lambda n: -st.gains[n],
-        )
-        rivals = [
-            n
-            for n in others
-            if st.qualifies[n]
-            and sign_flip_p(st.scores[n].sse_blocks - sc.sse_blocks, seed=k) >= 0.05
-        ]
-        if rivals:
-            o = by_key[rivals[0]].name
-            ev += (
-                f"; AMBIGUOUS: {rivals[0]} explains the data equally well within the noise "
-                f"({100 * st.gains[rivals[0]]:.0f} % lower, {st.n_params[rivals[0]]:.3g} "
-                f"parameters; sign-flip p >= 0.05); to separate {name} from {o}: "
-                f"{separating_experiment(name, o)}"
-            )
-            ambiguous.append(
-                {"effect": name, "rival": o, "experiment": separating_experiment(name, o)}
-            )
-        elif others and st.gains[others[0]] > 0.8 * gain:
-            ev += (
-                f"; also nearly as good: {others[0]} ({100 * st.gains[others[0]]:.0f} % lower, "
-                f"{st.n_params[others[0]]:.3g} parameters)"
-            )
+        text, amb = rival_statement(st, key, {n: c.name for n, c in by_key.items()}, seed=k)
+        ev += text
+        if amb is not None:
+            ambiguous.append(amb)
         dsub = [recs[i] for i in diag]
         corr = [after[i] - before[i] for i in diag]
         params = cand.report_params(eff.x, eff.cov, ctx)
