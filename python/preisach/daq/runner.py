@@ -206,7 +206,9 @@ def run_trial(
     go = threading.Event()
 
     def work() -> None:
-        go.wait()
+        # polled: a Ctrl-C inside go.set() can land between setting the flag and notifying
+        while not go.wait(0.05):
+            pass
         if "cancelled" in box:  # stopped before the trial began: nothing to drive or write
             done.set()
             return
