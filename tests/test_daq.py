@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from preisach import PreisachModel, Recording, _core, daq
 from preisach.daq.calibration import SS15_CHANNEL_B
-from preisach.errors import DeviceError, TrialInterrupted
+from preisach.errors import DeviceError, StopSignal, TrialInterrupted
 
 TS = 1e-3
 
@@ -189,27 +189,31 @@ def test_a_ctrl_c_at_the_first_sample_still_finishes_the_file(model, tmp_path, s
 
 
 @pytest.mark.parametrize("started", [True, False])
+@pytest.mark.parametrize("sigterm", [False, True])
 def test_a_ctrl_c_while_the_worker_starts_drives_nothing_and_leaves_no_thread(
-    model, tmp_path, monkeypatch, started
+    model, tmp_path, monkeypatch, started, sigterm
 ):
-    """Ctrl-C inside ``Thread.start`` (after the thread began, or before): nothing is driven.
+    """Ctrl-C or SIGTERM inside ``Thread.start`` (after the thread began, or before).
 
     ``start`` once ran before the runner's ``try``: an interrupt there escaped and left the
-    worker waiting for its go-ahead forever.  Fails if the worker survives, or if a sample was
-    driven or written.
+    worker waiting for its go-ahead forever.  Fails if the worker survives, if a sample was
+    driven or written, or if a SIGTERM loses its name (the command's exit code).
     """
 
     class Interrupted(threading.Thread):
         def start(self) -> None:
             if started:
                 super().start()
-            raise KeyboardInterrupt
+            raise StopSignal(signal.SIGTERM) if sigterm else KeyboardInterrupt
 
     monkeypatch.setattr(daq.runner.threading, "Thread", Interrupted)
     rig = daq.virtual_ss15(model)
     path = tmp_path / "never.csv"
-    with pytest.raises(KeyboardInterrupt, match="before the trial began"):
+    with pytest.raises(StopSignal if sigterm else KeyboardInterrupt) as info:
         daq.run_trial(rig, np.full(100, 30.0), path, sample_time=TS)
+    assert str(info.value) == (
+        "stopped by SIGTERM" if sigterm else "interrupted before the trial began"
+    )
     deadline = time.monotonic() + 5.0
     while time.monotonic() < deadline and any(
         t.name == "preisach-trial" for t in threading.enumerate()

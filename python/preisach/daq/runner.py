@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .. import _core
-from ..errors import TrialInterrupted
+from ..errors import StopSignal, TrialInterrupted
 from ..recording import _check_metadata
 from .channel import SafetyLimits
 from .controller import WaveformController
@@ -266,7 +266,9 @@ def run_trial(
             if progress is not None:
                 progress(runner.progress, runner.planned)
     except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM/SIGHUP as a StopSignal
-        if cancelled():
+        if cancelled():  # nothing was driven or written; a signal keeps its name (exit code)
+            if isinstance(exc, StopSignal):
+                raise
             raise KeyboardInterrupt("interrupted before the trial began") from exc
         interrupted = True
         runner.request_stop(str(exc) or "interrupted by the user (KeyboardInterrupt)")
