@@ -74,6 +74,9 @@ SEPARATING: dict[frozenset[str], str] = {
     "the end of a run (a drift moves it, non-congruence does not)",
     frozenset({"delay", "creep"}): "a step-and-hold (a delay is over within milliseconds, creep "
     "goes on for seconds)",
+    frozenset({"rate_dependence", "sensor_drift"}): "the same loop at several drive rates, "
+    "repeated at the start and the end of the run (rate dependence changes the loop with the "
+    "rate; a drift moves it in time)",
 }
 
 #: What separates the actuator's non-congruence from a nonlinear sensor curve, the two readings
@@ -107,21 +110,22 @@ def rival_statement(
     whether each qualifies, parameter counts), ``names`` the effect name of every candidate
     key.  A qualifying candidate of another name that is not significantly worse (one-sided
     sign-flip test over the held-out blocks, p >= 0.05) makes the choice ``AMBIGUOUS``; else
-    the best other name with at least :data:`NEARLY_AS_GOOD` of the gain is reported as
-    nearly as good.  Either way the text names the experiment that separates the two
-    (:func:`separating_experiment`).  Returns the text (empty, or starting with "; ") and,
-    when ambiguous, the report's ``{"effect", "rival", "experiment"}`` entry.
+    the best qualifying other name with at least :data:`NEARLY_AS_GOOD` of the gain is
+    reported as nearly as good (a refused fit is not: blind seed 42's warm-up 011 read "also
+    nearly as good: sensor_drift" for a drift refused at that step).  Either way the text
+    names the experiment that separates the two (:func:`separating_experiment`).  Returns the
+    text (empty, or starting with "; ") and, when ambiguous, the report's ``{"effect",
+    "rival", "experiment"}`` entry.
     """
     name, sc, gain = names[key], step.scores[key], step.gains[key]
-    others = sorted(
-        (n for n in step.scores if names[n] != name and step.gains[n] > 0),
+    others = sorted(  # a refused fit is no rival, nor nearly as good
+        (n for n in step.scores if names[n] != name and step.gains[n] > 0 and step.qualifies[n]),
         key=lambda n: -step.gains[n],
     )
     rivals = [
         n
         for n in others
-        if step.qualifies[n]
-        and sign_flip_p(step.scores[n].sse_blocks - sc.sse_blocks, seed=seed) >= 0.05
+        if sign_flip_p(step.scores[n].sse_blocks - sc.sse_blocks, seed=seed) >= 0.05
     ]
     if rivals:
         r = rivals[0]

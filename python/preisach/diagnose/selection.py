@@ -90,6 +90,9 @@ from .scoring import (
 #: how a step words a qualifying fit whose parameters contradict its name (the report names
 #: the best such fits of an unexplained residual: :func:`~.report.nearest_rejected`)
 IMPLAUSIBLE = "implausible for its name: "
+#: How a fit that met the gain bars is refused when its gain is not significant over the
+#: held-out blocks (it sits in a few of them).
+NOT_SIGNIFICANT = "not significant over held-out blocks"
 #: the finer grid a refitted base is tried on when the model's grid leaves too much
 FINE_LEVELS = 41
 #: the firmer ridge (relative to the mean diagonal of the normal matrix) those bases get
@@ -800,9 +803,7 @@ def run_selection(
                     f"explains {expl[name]:.2f} x the noise variance (< {noise_factor:g})"
                 )
             if pv[name] >= alpha:
-                reasons.append(
-                    f"not significant over held-out blocks (p = {pv[name]:.3g} >= {alpha:g})"
-                )
+                reasons.append(f"{NOT_SIGNIFICANT} (p = {pv[name]:.3g} >= {alpha:g})")
             # an effect that acts in time shows where the base cannot err: within the holds
             if remaining[name].name in HOLD_EFFECTS | RING_EFFECTS:
                 ev = hold_evidence(baseline, sc, pieces, sigma, seed=len(steps))
