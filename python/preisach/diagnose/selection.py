@@ -90,8 +90,8 @@ from .scoring import (
 #: how a step words a qualifying fit whose parameters contradict its name (the report names
 #: the best such fits of an unexplained residual: :func:`~.report.nearest_rejected`)
 IMPLAUSIBLE = "implausible for its name: "
-#: How a fit that met the gain bars is refused when its gain is not significant over the
-#: held-out blocks (it sits in a few of them).
+#: how a step words a fit whose gain is not significant over the held-out blocks (the last
+#: of its reasons; alone, the fit met the gain bars: :func:`~.report.nearest_rejected`)
 NOT_SIGNIFICANT = "not significant over held-out blocks"
 #: the finer grid a refitted base is tried on when the model's grid leaves too much
 FINE_LEVELS = 41
