@@ -15,7 +15,6 @@ import importlib.util
 from pathlib import Path
 from types import ModuleType
 
-import numpy as np
 import pytest
 from preisach.recording import Recording
 
@@ -33,12 +32,10 @@ def _generator() -> ModuleType:
 def _blind_case(out: Path, seed: int, index: int) -> tuple[Path, list[str]]:
     """Write case ``index`` of the generator's run ``--seed seed --cases-per-kind 3 --cml``."""
     gen = _generator()
-    plan = gen.case_plan(3, np.random.default_rng(seed))
-    seeds = np.random.SeedSequence(seed).spawn(len(plan))
-    kinds, forms = plan[index]
+    job = gen.case_jobs(str(out), 3, seed, cml=True)[index]
     (out / "truth").mkdir(parents=True, exist_ok=True)
-    gen.make_case((index, kinds, forms, int(seeds[index].generate_state(1)[0]), str(out), True))
-    return out / f"case_{index:03d}", list(forms)
+    gen.make_case(job)
+    return out / f"case_{index:03d}", list(job[2])
 
 
 @pytest.mark.slow

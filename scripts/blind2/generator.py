@@ -1162,15 +1162,20 @@ def case_plan(n_per_kind, rng):
     return [specs[i] for i in order]
 
 
-def generate(outdir, n_per_kind, seed, workers, cml=False):
-    os.makedirs(os.path.join(outdir, "truth"), exist_ok=True)
-    rng = np.random.default_rng(seed)
-    plan = case_plan(n_per_kind, rng)
+def case_jobs(outdir, n_per_kind, seed, cml=False):
+    """The make_case argument tuples of one run, in case order."""
+    plan = case_plan(n_per_kind, np.random.default_rng(seed))
     seeds = np.random.SeedSequence(seed).spawn(len(plan))
     jobs = [(i, ks, fs, int(seeds[i].generate_state(1)[0]), outdir)
             for i, (ks, fs) in enumerate(plan)]
     if cml:
         jobs = [j + (True,) for j in jobs]
+    return jobs
+
+
+def generate(outdir, n_per_kind, seed, workers, cml=False):
+    os.makedirs(os.path.join(outdir, "truth"), exist_ok=True)
+    jobs = case_jobs(outdir, n_per_kind, seed, cml)
     t0 = time.time()
     if workers > 1:
         from multiprocessing import Pool
