@@ -64,7 +64,15 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
         "noise_test",
         "unexplained",
         "base_grid",
+        "candidates",
     }
+    # the step table: every fit of every step, the kept one the first effect's form
+    rows = d["candidates"]
+    assert {r["step"] for r in rows} == set(range(1, max(r["step"] for r in rows) + 1))
+    kept = [r for r in rows if r["kept"]]
+    assert len(kept) == len(d["effects"]) and kept[0]["name"].split("/")[0] == "delay"
+    assert kept[0]["heldout_rmse"] < kept[0]["baseline_rmse"] and kept[0]["p_value"] < 0.01
+    assert all(r["decision"] for r in rows if not r["kept"])
     assert set(d["noise_test"]) == {"ratio", "threshold", "classical", "holds", "consistent"}
     assert d["noise_test"]["holds"] is None  # an effect was kept: no hold test
     assert d["noise_test"]["classical"] is None  # an effect was kept: no resolution check

@@ -112,7 +112,10 @@ class DiagnosisReport:
     before, after : ResidualAnalysis
         Residual analysis of the given model and of the augmented model (held-out).
     candidates : list of dict
-        Every candidate in every selection step: held-out RMSE, gain, p-value, decision.
+        Every candidate in every selection step (:func:`candidate_table`): ``step``, ``name``
+        (the form's key), ``heldout_rmse`` and the step's ``baseline_rmse`` (V), ``gain``
+        (relative), ``explained_noise_variances``, ``p_value``, ``n_params``, ``kept`` and
+        ``decision`` (why it was or was not kept).
     noise_test : dict
         ``ratio`` (held-out RMSE after the kept effects over the noise), ``threshold``,
         ``classical`` (None, or when nothing was kept above the bound with a refitted base:
@@ -174,6 +177,7 @@ class DiagnosisReport:
             "noise_test": self.noise_test,
             "unexplained": self.unexplained,
             "base_grid": self.base_grid,
+            "candidates": self.candidates,
         }
 
     def to_json(self, path: PathLike | None = None, *, indent: int = 2) -> str:
@@ -192,7 +196,6 @@ class DiagnosisReport:
                 "statements": [e.statement for e in self.effects],
                 "before": self.before.to_dict(),
                 "after": self.after.to_dict(),
-                "candidates": self.candidates,
                 "model": self.model.describe(),
                 "seconds": self.seconds,
                 "notes": self.notes,
