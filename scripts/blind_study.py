@@ -122,7 +122,18 @@ def _outcome(rep: dict[str, Any]) -> dict[str, Any]:
         "hold_gain": ((first.get("holds") or {}).get("gain") if first else None),
         "ratio": rep.get("noise_test", {}).get("ratio"),
         "unexplained": (rep.get("unexplained") or {}).get("statement"),
+        "step1": _step1_best(rep.get("candidates") or []),
     }
+
+
+def _step1_best(rows: list[dict[str, Any]]) -> dict[str, list[Any]]:
+    """Per effect name, its best form at selection step 1: ``[form, gain, p-value]``."""
+    best: dict[str, list[Any]] = {}
+    for c in rows:
+        name = c["name"].split("/")[0]
+        if c["step"] == 1 and (name not in best or c["gain"] > best[name][1]):
+            best[name] = [c["name"], c["gain"], c["p_value"]]
+    return best
 
 
 def collect(outdir: Path, work: Path, passes: list[str]) -> list[dict[str, Any]]:
@@ -210,6 +221,12 @@ def summarise(results: list[dict[str, Any]], name: str) -> list[str]:
             f"  {mark}{r['case']}: {'+'.join(r['kinds']):<32} -> {p['verdict']:<21} "
             f"[{', '.join(p['effects'])}] gain {100 * p['gain']:.0f} %{held}, ratio {ratio}"
         )
+        near = [p.get("step1", {}).get(k) for k in r["kinds"]]
+        if mark == "-- " and any(near):  # how near the truth's own fits came at step 1
+            lines.append(
+                "       step 1, the truth's best fit: "
+                + "; ".join(f"{f} {100 * g:.1f} % (p {pv:.2g})" for f, g, pv in filter(None, near))
+            )
     return lines
 
 

@@ -86,8 +86,8 @@ def test_demo_leaves_recordings_and_models_that_load(demo):
         m = PreisachModel.load(out / f"{name}.npz")
         assert (m.u_min, m.u_max) == (-100.0, 100.0)
     diag = json.loads((out / "diagnosis.json").read_text())
-    # the issue's schema, plus the noise test behind none/unexplained and the refit base's
-    # grid choice (issue 13)
+    # the issue's schema, plus the noise test behind none/unexplained, the refit base's
+    # grid choice and the candidate table (issue 13)
     assert set(diag) == {
         "verdict",
         "effects",
@@ -97,6 +97,7 @@ def test_demo_leaves_recordings_and_models_that_load(demo):
         "noise_test",
         "unexplained",
         "base_grid",
+        "candidates",
     }
 
 

@@ -1,0 +1,73 @@
+"""The blind study's summary: for a miss, how near the truth's own fits came at step 1."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+STUDY = Path(__file__).resolve().parents[1] / "scripts" / "blind_study.py"
+
+
+def _study() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("blind_study", STUDY)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _report(
+    verdict: str, kept: list[str], rows: list[tuple[int, str, float, float]]
+) -> dict[str, Any]:
+    """A diagnosis JSON report with the candidate table ``(step, form, gain, p)``."""
+    effects = [
+        {"name": k, "heldout_rmse_before": 2.0, "heldout_rmse_after": 1.0, "holds": None}
+        for k in kept
+    ]
+    return {
+        "verdict": verdict,
+        "effects": effects,
+        "rmse_before": 4.0,
+        "rmse_after": 1.0,
+        "noise_test": {"ratio": 1.3},
+        "unexplained": None,
+        "candidates": [
+            {"step": s, "name": f, "gain": g, "p_value": p, "kept": f in kept}
+            for s, f, g, p in rows
+        ],
+    }
+
+
+def test_a_miss_is_listed_with_the_truths_best_fit_at_step_one() -> None:
+    bs = _study()
+    miss = _report(
+        "none",
+        [],
+        [
+            (1, "sensor_drift", 0.015, 0.12),
+            (1, "non_congruence/output_curve", 0.014, 0.026),
+            (1, "non_congruence", -0.011, 0.6),
+            (2, "non_congruence", 0.2, 0.001),  # a later step does not count
+        ],
+    )
+    hit = _report("delay", ["delay"], [(1, "delay", 0.5, 0.0002), (1, "creep", 0.01, 0.3)])
+    old = _report("none", [], [])
+    del old["candidates"]  # a report written before the table was in the JSON
+    results = [
+        {"case": "case_000", "kinds": ["non_congruence"], "passes": {"d": bs._outcome(miss)}},
+        {"case": "case_001", "kinds": ["delay"], "passes": {"d": bs._outcome(hit)}},
+        {"case": "case_002", "kinds": ["creep"], "passes": {"d": bs._outcome(old)}},
+    ]
+    assert bs._outcome(miss)["step1"]["non_congruence"] == [
+        "non_congruence/output_curve",
+        0.014,
+        0.026,
+    ]
+    lines = bs.summarise(results, "d")
+    text = "\n".join(lines)
+    at = next(i for i, ln in enumerate(lines) if "-- case_000" in ln)
+    assert "the truth's best fit: non_congruence/output_curve 1.4 % (p 0.026)" in lines[at + 1]
+    assert text.count("the truth's best fit") == 1  # not for a hit, nor without a table
+    assert "effect cases: right 1/3" in text
