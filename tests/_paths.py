@@ -1,15 +1,27 @@
 """Where the real recordings are: ``$PREISACH_DATA``, else ``../shared/data`` beside the repo.
 
 They are never copied into the repository (see ``../shared/data/README.md`` for their licences);
-tests that need them skip, naming this folder, when it does not hold them.
+tests that need them skip, naming this folder, when it does not hold them.  Also: a script of
+``scripts/`` loaded as a module (:func:`script_module`).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 from pathlib import Path
+from types import ModuleType
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA_DIR = Path(os.environ.get("PREISACH_DATA") or ROOT.parent / "shared" / "data")
 YAN9A = DATA_DIR / "yan9a-piezo" / "Model_Vi_Do.dat"
 PMAGPY_FORC = DATA_DIR / "pmagpy-forc" / "conventional_example.forc"
+
+
+def script_module(relpath: str, name: str) -> ModuleType:
+    """Load ``scripts/<relpath>`` (a script, not a package module) as the module ``name``."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / relpath)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

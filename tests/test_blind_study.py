@@ -2,20 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-STUDY = Path(__file__).resolve().parents[1] / "scripts" / "blind_study.py"
+from _paths import script_module
 
 
 def _study() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("blind_study", STUDY)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return script_module("blind_study.py", "blind_study")
 
 
 def _report(

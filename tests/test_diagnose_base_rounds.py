@@ -11,22 +11,16 @@ and the first name was wrong (``rate_dependence``).
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 
 import pytest
+from _paths import script_module
 from preisach.recording import Recording
-
-GENERATOR = Path(__file__).resolve().parents[1] / "scripts" / "blind2" / "generator.py"
 
 
 def _generator() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("blind2_generator", GENERATOR)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return script_module("blind2/generator.py", "blind2_generator")
 
 
 def _blind_case(out: Path, seed: int, index: int) -> tuple[Path, list[str]]:
