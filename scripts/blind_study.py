@@ -213,7 +213,8 @@ def summarise(results: list[dict[str, Any]], name: str) -> list[str]:
     lines.append("per case (truth, verdict, kept effects, first gain, held-out RMSE / noise):")
     for r in rows:
         p = r["passes"][name]
-        mark = "ok " if right(r["kinds"], p["verdict"]) else "-- "
+        hit = right(r["kinds"], p["verdict"])
+        mark = "ok " if hit else "-- "
         ratio = "-" if p["ratio"] is None else f"{p['ratio']:.2f}"
         hg = p.get("hold_gain")
         held = "" if hg is None else f" (within the holds {100 * hg:.0f} %)"
@@ -222,7 +223,7 @@ def summarise(results: list[dict[str, Any]], name: str) -> list[str]:
             f"[{', '.join(p['effects'])}] gain {100 * p['gain']:.0f} %{held}, ratio {ratio}"
         )
         near = [p.get("step1", {}).get(k) for k in r["kinds"]]
-        if mark == "-- " and any(near):  # how near the truth's own fits came at step 1
+        if not hit and any(near):  # how near the truth's own fits came at step 1
             lines.append(
                 "       step 1, the truth's best fit: "
                 + "; ".join(f"{f} {100 * g:.1f} % (p {pv:.2g})" for f, g, pv in filter(None, near))
