@@ -740,6 +740,7 @@ def _classical_change(
     creep = motion.follows_t >= HOLD_FOLLOWS_T
     gain = float(check["drift"]["gain_noise_variances"])
     p = float(check["drift"]["p"])
+    finer = check["drift"]["finer"]
     before, after = _fine_rmse(check, gain, sigma)
     diag = list(ctx.diag)
     size = _peak_to_peak(ctx, curves)
@@ -772,9 +773,11 @@ def _classical_change(
             f"states predicts interleaved {1e3 * check['stretch_s']:.0f} ms held-out stretches "
             f"at {check['ratio']:.3g} x the noise; a slow drift per recording adds "
             f"{gain:.2g} x the noise variance to it (p = {p:.2g}; bar "
-            f"{RESOLUTION_BEYOND_CLASSICAL:g}), which no classical model with any initial states "
-            f"makes; within {motion.n_pieces} input holds the residual's motion on the moves "
-            f"into them has t = {motion.follows_t:.2g} (bar {HOLD_FOLLOWS_T:g}): {why}"
+            f"{RESOLUTION_BEYOND_CLASSICAL:g}) and {finer['gain_noise_variances']:.2g} x "
+            f"(p = {finer['p']:.2g}) to one with {finer['levels']} levels, which no "
+            f"classical model with any initial states makes; within {motion.n_pieces} input "
+            f"holds the residual's motion on the moves into them has t = "
+            f"{motion.follows_t:.2g} (bar {HOLD_FOLLOWS_T:g}): {why}"
         ),
         where=where_of([ctx.recs[i] for i in diag], [curves[i] for i in diag], ctx.u_span),
         parameters={"peak_to_peak": size},
