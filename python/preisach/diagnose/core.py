@@ -740,7 +740,7 @@ def _classical_change(
     creep = motion.follows_t >= HOLD_FOLLOWS_T
     gain = float(check["drift"]["gain_noise_variances"])
     p = float(check["drift"]["p"])
-    finer = check["drift"]["finer"]
+    finer = check["drift"]["finer"][-1]  # the grid that confirmed it
     before, after = _fine_rmse(check, gain, sigma)
     diag = list(ctx.diag)
     size = _peak_to_peak(ctx, curves)
