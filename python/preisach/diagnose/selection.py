@@ -614,13 +614,15 @@ def resolution_check(
     (:func:`~preisach.diagnose.congruency.output_curve_check`, key ``output_curve``) and a
     slow change in time (the selection's drift spline added to every recording, key
     ``drift``).  Either one that gains at least :data:`RESOLUTION_BEYOND_CLASSICAL` noise
-    variances at sign-flip p < 0.01 makes the residual more than the resolution; when both
-    do, the larger gain names it (key ``found``).  Loop heights that change with the output
-    level are named ``non_congruence``, with a sensor curve as the explanation the data
-    cannot tell from it (``core._classical_curve``); a drift found so is named by input
-    holds: creep when the residual follows the moves into them, a sensor drift when it does
-    not (``core._classical_change``).  When neither passes, the recordings' repeated minor
-    loops are compared with no model at all
+    variances at sign-flip p < 0.01 makes the residual more than the resolution - a drift
+    only when it does so on finer grids too (:func:`_confirm_drift`, key ``drift.finer``:
+    what a grid cannot resolve of narrow loops moves with the slow input, and a drift spline
+    takes it up); when both do, the larger gain names it (key ``found``).  Loop heights that
+    change with the output level are named ``non_congruence``, with a sensor curve as the
+    explanation the data cannot tell from it (``core._classical_curve``); a drift found so
+    is named by input holds: creep when the residual follows the moves into them, a sensor
+    drift when it does not (``core._classical_change``).  When neither passes, the
+    recordings' repeated minor loops are compared with no model at all
     (:func:`~preisach.diagnose.congruency.minor_loop_check`, key ``minor_loops``): loops
     between the same inputs that differ in shape beyond a vertical shift are what no
     classical model makes however its weights are refitted, named ``non_congruence`` (key
