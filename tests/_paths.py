@@ -2,7 +2,8 @@
 
 They are never copied into the repository (see ``../shared/data/README.md`` for their licences);
 tests that need them skip, naming this folder, when it does not hold them.  Also: a script of
-``scripts/`` loaded as a module (:func:`script_module`).
+``scripts/`` loaded as a module (:func:`script_module`), and a case of the blind generator
+written to disk (:func:`blind_case`).
 """
 
 from __future__ import annotations
@@ -25,3 +26,15 @@ def script_module(relpath: str, name: str) -> ModuleType:
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+def blind_case(out: Path, seed: int, index: int) -> tuple[Path, list[str]]:
+    """Write case ``index`` of the blind generator's run ``--seed seed --cases-per-kind 3
+    --cml`` (``scripts/blind2``, written from physical descriptions only) into ``out``.
+
+    Returns the case folder and the forms of its effects (empty for a null)."""
+    gen = script_module("blind2/generator.py", "blind2_generator")
+    job = gen.case_jobs(str(out), 3, seed, cml=True)[index]
+    (out / "truth").mkdir(parents=True, exist_ok=True)
+    gen.make_case(job)
+    return out / f"case_{index:03d}", list(job[2])

@@ -11,25 +11,9 @@ and the first name was wrong (``rate_dependence``).
 
 from __future__ import annotations
 
-from pathlib import Path
-from types import ModuleType
-
 import pytest
-from _paths import script_module
+from _paths import blind_case
 from preisach.recording import Recording
-
-
-def _generator() -> ModuleType:
-    return script_module("blind2/generator.py", "blind2_generator")
-
-
-def _blind_case(out: Path, seed: int, index: int) -> tuple[Path, list[str]]:
-    """Write case ``index`` of the generator's run ``--seed seed --cases-per-kind 3 --cml``."""
-    gen = _generator()
-    job = gen.case_jobs(str(out), 3, seed, cml=True)[index]
-    (out / "truth").mkdir(parents=True, exist_ok=True)
-    gen.make_case(job)
-    return out / f"case_{index:03d}", list(job[2])
 
 
 @pytest.mark.slow
@@ -39,7 +23,7 @@ def test_the_refitted_base_is_a_fixed_point_of_its_initial_states(tmp_path):
     from preisach.diagnose.scoring import make_folds
     from preisach.identify import identify
 
-    case, forms = _blind_case(tmp_path, 42, 11)
+    case, forms = blind_case(tmp_path, 42, 11)
     assert forms == ["thermal_warmup"]
     ident = Recording.load(case / "id.csv")
     recordings = [Recording.load(p) for p in sorted(case.glob("exp*.csv"))]

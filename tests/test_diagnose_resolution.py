@@ -305,25 +305,21 @@ def test_a_feedback_is_named_only_beyond_the_fine_classical_model(moving):
         assert why is not None and "classical Preisach model" in why, why
 
 
-def _generated_case(tmp_path, seed: int, index: int) -> Context:
-    """Case ``index`` of the blind generator's run ``--seed seed --cases-per-kind 3 --cml``
-    (``scripts/blind2``, written from physical descriptions only), as the diagnosis sees it
-    when nothing was kept: the model identified from its sweep, refitted on the experiments,
-    the drift's knots chosen on held-out time (as the selection's drift candidate does)."""
-    from _paths import script_module
+def _generated_case(tmp_path, seed: int, index: int) -> tuple[Context, list[str]]:
+    """Case ``index`` of the blind generator's seed ``seed`` (:func:`_paths.blind_case`) as
+    the diagnosis sees it when nothing was kept: the model identified from its sweep,
+    refitted on the experiments, the drift's knots chosen on held-out time (as the
+    selection's drift candidate does), and the forms of its effects."""
+    from _paths import blind_case
     from preisach.identify import identify
 
-    gen = script_module("blind2/generator.py", "blind2_generator")
-    job = gen.case_jobs(str(tmp_path), 3, seed, cml=True)[index]
-    (tmp_path / "truth").mkdir()
-    gen.make_case(job)
-    case = tmp_path / f"case_{index:03d}"
+    case, forms = blind_case(tmp_path, seed, index)
     ident = Recording.load(case / "id.csv")
     recordings = [Recording.load(p) for p in sorted(case.glob("exp*.csv"))]
     model = identify([ident], progress=False).model
     ctx = Context(model, prepare_recordings(model, recordings, identification=[ident]), refit=True)
     ctx.choose_drift_roughness()
-    return ctx
+    return ctx, forms
 
 
 def _noise(ctx: Context) -> float:
@@ -343,7 +339,8 @@ def test_a_drift_must_also_pass_on_the_finer_grid(tmp_path):
     misfit is gone, and so is the drift.  Fails when a drift found on the fine grid is named
     without a finer one (``DRIFT_CONFIRM_LEVELS``) confirming it.
     """
-    ctx = _generated_case(tmp_path, 46, 13)
+    ctx, forms = _generated_case(tmp_path, 46, 13)
+    assert forms == []  # a null
     chk, curves = resolution_check(ctx, _noise(ctx), noise_ratio=2.0)
     drift = chk["drift"]
     # the fine grid's misfit passes the bar as a drift ...
@@ -369,7 +366,8 @@ def test_a_drift_is_confirmed_on_the_grid_that_resolves_no_more(tmp_path):
     noise, more than ``DRIFT_REFINE_RATIO`` allows, and on 101 levels the drift adds
     nothing.  Fails when the refinement stops at the first finer grid.
     """
-    ctx = _generated_case(tmp_path, 47, 17)
+    ctx, forms = _generated_case(tmp_path, 47, 17)
+    assert forms == ["debye_relaxation"]
     chk, curves = resolution_check(ctx, _noise(ctx), noise_ratio=2.0)
     drift = chk["drift"]
     assert [f["levels"] for f in drift["finer"]] == list(DRIFT_CONFIRM_LEVELS), drift
