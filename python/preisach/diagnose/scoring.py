@@ -481,6 +481,15 @@ def fine_system(
     return fs
 
 
+def release_fine_systems(ctx: Context, levels: int) -> None:
+    """Forget :func:`fine_system`'s normal equations on ``levels``, for grids used once.
+
+    Their memory is about 0.6 GB on 101 levels.
+    """
+    for key in [k for k in ctx.fine_systems if k[0] == int(levels)]:
+        del ctx.fine_systems[key]
+
+
 def _assemble_fine_system(
     ctx: Context, levels: int, stretch: float, state_knots: int
 ) -> FineSystem:

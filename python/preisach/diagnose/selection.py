@@ -85,6 +85,7 @@ from .scoring import (
     classical_check,
     heldout_score,
     make_folds,
+    release_fine_systems,
     sign_flip_p,
 )
 
@@ -578,15 +579,13 @@ def _confirm_drift(
     ratio = fine.ratio_classical
     for lv in DRIFT_CONFIRM_LEVELS:
         res = _drift_beyond_classical(ctx, sigma, seed=0, levels=lv)
+        release_fine_systems(ctx, lv)  # nothing else uses these grids
         out.append((lv, res))
         if not res.passes(RESOLUTION_BEYOND_CLASSICAL):
             break
         if res.ratio_classical > DRIFT_REFINE_RATIO * ratio:
             break
         ratio = res.ratio_classical
-    # nothing else uses these grids: free their normal matrices (about 0.6 GB on 101 levels)
-    for key in [k for k in ctx.fine_systems if k[0] in DRIFT_CONFIRM_LEVELS]:
-        del ctx.fine_systems[key]
     return out
 
 
@@ -679,7 +678,7 @@ def resolution_check(
         # a drift must also pass on finer grids (DRIFT_CONFIRM_LEVELS): what it took up on
         # the fine one can be that grid's misfit of narrow loops, moving with the input
         finer = _confirm_drift(ctx, sigma, dc) if dc.passes(RESOLUTION_BEYOND_CLASSICAL) else []
-        last = finer[-1][1] if finer else None
+        last_levels, last = finer[-1] if finer else (0, None)
         lc = minor_loop_check(ctx, sigma)
         curve = cc.as_dict()
         drift = {
@@ -732,7 +731,7 @@ def resolution_check(
             statement = (
                 f"{within}, but a slow drift in time adds {dc.gain:.2g} x the noise variance "
                 f"to it (p = {dc.p:.2g}; bar {RESOLUTION_BEYOND_CLASSICAL:g}) and "
-                f"{last.gain:.2g} x (p = {last.p:.2g}) to one with {finer[-1][0]} "
+                f"{last.gain:.2g} x (p = {last.p:.2g}) to one with {last_levels} "
                 "levels: the recordings change in time in a way no "
                 "classical Preisach model follows, even with its initial states free - a "
                 "sensor drift, creep or a temperature change; the same step-and-hold at the "
@@ -750,7 +749,7 @@ def resolution_check(
             statement += (
                 f"; a slow drift in time adds {dc.gain:.2g} x the noise variance to it (p = "
                 f"{dc.p:.2g}) but {last.gain:.2g} x (p = {last.p:.2g}) to one with "
-                f"{finer[-1][0]} levels: a coarser grid's misfit of narrow loops, "
+                f"{last_levels} levels: a coarser grid's misfit of narrow loops, "
                 "not a change in time"
             )
         if ok and lc.pairs:
