@@ -182,3 +182,98 @@ def test_non_congruence_named_on_a_saturating_interaction():
     )
     assert rep.verdict == "non_congruence", rep.summary()
     assert rep.rmse_after < 0.5 * rep.rmse_before, rep.summary()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "candidate, drift",
+    [
+        ("NonCongruenceCandidate", False),
+        ("SplineFeedbackCandidate", False),
+        ("NonCongruenceCandidate", True),
+    ],
+)
+def test_the_gain_scan_in_cpp_gives_the_point_by_point_numbers(feedback_case, candidate, drift):
+    """The C++ scan of linear feedbacks is the per-point training error of the candidate's vectors.
+
+    Both feedback candidates' start-value scans run in one C++ call
+    (:meth:`~preisach.diagnose.problem.Problem.linear_feedback_scan`).  The spline's feedback
+    is flat outside its output range, so the fed-back output must be clipped to it there (the
+    spline here spans only the middle 60 % of the outputs, so the clip matters).  With a drift
+    the weights are fitted on every training sample with the drift profiled out and the
+    residuals taken at every third of them (a small ``max_fit_samples``), freed of their own
+    drift fit, every fourth counted: the C++ scan must do all of it as the Python path does.
+    """
+    from preisach.diagnose import candidates as cands
+    from preisach.diagnose.context import Chain, Context
+    from preisach.diagnose.data import prepare_recordings
+    from preisach.diagnose.problem import Problem
+    from preisach.diagnose.scoring import make_folds
+
+    case, model = feedback_case
+    recs = prepare_recordings(model, case.recordings, identification=[case.identification])
+    ctx = Context(model, recs, refit=True)
+    fold = make_folds(recs, "blocks")[0]
+    cand = getattr(cands, candidate)()
+    cand.prepare(ctx)
+    if candidate == "SplineFeedbackCandidate":
+        y = np.concatenate([r.y for r in recs])
+        lo, hi = np.quantile(y, [0.2, 0.8])
+        cand.y_lo, cand.y_hi = float(lo), float(hi)
+        cand.fixed = {"y_lo": cand.y_lo, "y_hi": cand.y_hi}
+        cand.knots = SplineFeedback.greville(cand.y_lo, cand.y_hi, cand.N_COEF)
+    base = ctx.refit_base([], ctx.given, fold.train, drift)
+    if drift:
+        ctx.max_fit_samples = int(sum(int(m.sum()) for m in fold.train) / 2.5)
+    prob = Problem(ctx, cand, Chain(base), fold.train, drift, profile=True)
+    assert prob.stride == (3 if drift else 1)
+    lo, hi = cand.linear_range if candidate == "SplineFeedbackCandidate" else (ctx.y_lo, ctx.y_hi)
+    gains = np.array([-0.3, -0.1, 0.0, 0.05, 0.2, 0.4]) * cand.limit
+    zeros = lo + np.array([0.1, 0.5, 0.9, 0.3, 0.7, 0.5]) * (hi - lo)
+    fast = prob.linear_feedback_scan(gains, zeros)
+    assert fast is not None
+    slow = prob.sse_many([prob.clip(cand.linear(a, z)) for a, z in zip(gains, zeros)], coarse=True)
+    np.testing.assert_allclose(fast, slow, rtol=1e-6)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "candidate, x",
+    [("NonCongruenceCandidate", [0.15, 0.03, -0.02, 0.5]), ("RateLagCandidate", [4e-3])],
+)
+def test_profiled_weights_with_a_drift_are_those_of_the_drift_projected_solve(
+    feedback_case, candidate, x
+):
+    """Weights of a candidate with a drift: from the C++ normal equations with the rows' cross
+    products with the drift basis, they are the sparse regressors' solve with the drift
+    projected off (``Context.solve_theta``), for a feedback and an input-side candidate.
+
+    ``x``: the feedback's gains as shares of its bound and its zero as a share of the output
+    range, or the input lag (s).
+    """
+    from preisach.diagnose import candidates as cands
+    from preisach.diagnose.context import Chain, Context, FittedEffect
+    from preisach.diagnose.data import prepare_recordings
+    from preisach.diagnose.problem import Problem
+    from preisach.diagnose.scoring import make_folds
+
+    case, model = feedback_case
+    recs = prepare_recordings(model, case.recordings, identification=[case.identification])
+    ctx = Context(model, recs, refit=True)
+    fold = make_folds(recs, "blocks")[0]
+    cand = getattr(cands, candidate)()
+    cand.prepare(ctx)
+    base = ctx.refit_base([], ctx.given, fold.train, True)
+    if candidate == "NonCongruenceCandidate":
+        g, (lo, hi) = cand.limit, (ctx.y_lo, ctx.y_hi)
+        x = [x[0] * g, x[1] * g, x[2] * g, lo + x[3] * (hi - lo)]
+    xv = np.asarray(x, float)
+    prob = Problem(ctx, cand, Chain(base), fold.train, True, profile=True)
+    theta = prob.theta(xv)
+    Rs, targets, _ = ctx.linearised_targets(
+        [FittedEffect(cand, xv)], base, fold.train, prob.feedback_from
+    )
+    ref = ctx.solve_theta(Rs, targets, fold.train, True, False)
+    np.testing.assert_allclose(theta, ref, rtol=1e-6, atol=1e-8 * np.max(np.abs(ref)))
+    no_drift = Problem(ctx, cand, Chain(base), fold.train, False, profile=True).theta(xv)
+    assert np.max(np.abs(no_drift - ref)) > 1e-4 * np.max(np.abs(ref))  # the drift matters

@@ -6,6 +6,9 @@
 
 #include "common.hpp"
 
+#include <optional>
+#include <tuple>
+
 void register_diagnose(py::module_& m) {
     m.def(
         "play_operator",
@@ -94,7 +97,9 @@ void register_diagnose(py::module_& m) {
            const std::vector<preisach::State>& states, const InArray& gains, const InArray& zeros, double u_min,
            double u_max, double ridge, const InArray& theta0,
            const std::vector<std::vector<std::tuple<std::vector<double>, std::vector<double>, double>>>& filters,
-           const preisach::EverettTable* reference, unsigned threads, const std::string& interpolation) {
+           const preisach::EverettTable* reference, unsigned threads, const std::string& interpolation,
+           const std::vector<std::optional<std::tuple<InArray, InArray, InArray>>>& drift, std::size_t res_stride,
+           std::size_t score_every) {
             const auto kind = preisach::parse_interpolation(interpolation);
             const std::size_t R = u.size();
             if (p.size() != R || y.size() != R || fold.size() != R)
@@ -104,6 +109,9 @@ void register_diagnose(py::module_& m) {
             if (!filters.empty() && filters.size() != R)
                 throw std::invalid_argument("filters: need none or one list per recording (" + std::to_string(R) +
                                             "), got " + std::to_string(filters.size()));
+            if (!drift.empty() && drift.size() != R)
+                throw std::invalid_argument("drift: need none or one entry per recording (" + std::to_string(R) +
+                                            "), got " + std::to_string(drift.size()));
             std::vector<preisach::ScanRecording> recs(R);
             for (std::size_t i = 0; i < R; ++i) {
                 std::size_t nu = 0, np_ = 0, ny = 0;
@@ -114,8 +122,24 @@ void register_diagnose(py::module_& m) {
                     throw std::invalid_argument("u, p, y and fold: recording " + std::to_string(i) +
                                                 " needs 1-D arrays of one length");
                 recs[i] = {pu, pp, py_, fold[i].data(), nu, {}};
+                recs[i].res_stride = res_stride;
+                recs[i].score_every = score_every;
                 if (!filters.empty())
                     for (const auto& [fb, fa, mix] : filters[i]) recs[i].filters.push_back({fb, fa, mix});
+                if (drift.empty() || !drift[i]) continue;
+                const auto& [basis, fit_ginv, res_ginv] = *drift[i];
+                const std::string at = "drift: recording " + std::to_string(i);
+                if (basis.ndim() != 2 || std::size_t(basis.shape(0)) != nu || basis.shape(1) < 1)
+                    throw std::invalid_argument(at + ": the basis must be " + std::to_string(nu) + " x k, k >= 1");
+                const py::ssize_t kd = basis.shape(1);
+                for (const auto* g : {&fit_ginv, &res_ginv})
+                    if (g->ndim() != 2 || g->shape(0) != kd || g->shape(1) != kd)
+                        throw std::invalid_argument(at + ": fit_ginv and res_ginv must be " + std::to_string(kd) +
+                                                    " x " + std::to_string(kd));
+                recs[i].k = std::size_t(kd);
+                recs[i].basis = basis.data();
+                recs[i].fit_ginv = fit_ginv.data();
+                recs[i].res_ginv = res_ginv.data();
             }
             std::size_t k = 0, kz = 0, nt = 0;
             const double* pg = as_vector(gains, "gains", k);
@@ -143,10 +167,15 @@ void register_diagnose(py::module_& m) {
         py::arg("gains"), py::arg("zeros"), py::arg("u_min"), py::arg("u_max"), py::arg("ridge"), py::arg("theta0"),
         py::arg("filters") = std::vector<std::vector<std::tuple<std::vector<double>, std::vector<double>, double>>>{},
         py::arg("reference").none(true) = nullptr, py::arg("threads") = 0, py::arg("interpolation") = "bilinear",
+        py::arg("drift") = std::vector<std::optional<std::tuple<InArray, InArray, InArray>>>{},
+        py::arg("res_stride") = 1, py::arg("score_every") = 1,
         "Training SSE (V^2) of a profiled Preisach fit whose relays see clamp(u + a (p - y0)) (volts), for every "
         "(gain a, zero y0): one list entry per recording (u, p the feedback signal one sample late, y, fold: 0 a "
         "row, < 0 state only), states[k * len(u) + i] the initial state of recording i at point k; ridge toward "
         "theta0 as lam = ridge * trace / p.  filters: per recording, the linear output filters (b, a with a[0] = 1, "
         "mix: y = x + mix (H x - x), started at rest) between the Preisach output and the reading, linearised about "
-        "the `reference` table.  The points run on `threads` threads (0: every core), the GIL released.");
+        "the `reference` table.  Residuals at every res_stride-th row, every score_every-th of them in the SSE.  drift: "
+        "per recording None or (basis (n x k), fit_ginv, res_ginv (k x k)): a smooth curve in time fitted jointly "
+        "(fit_ginv the inverse penalised normal matrix of the basis at the rows, res_ginv at the residual rows), "
+        "not with filters.  The points run on `threads` threads (0: every core), the GIL released.");
 }

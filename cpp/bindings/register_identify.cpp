@@ -135,4 +135,42 @@ void register_identify(py::module_& m) {
         "Normal equations of y ~ r_t . theta per fold (fold[t] < 0 skips sample t but still advances the state), "
         "accumulated in place: returns (gram (K, p, p), rhs (K, p), yy (K), ysum (K), count (K), final_state); "
         "the GIL is released.");
+
+    m.def(
+        "normal_equations_basis",
+        [](const Eigen::VectorXd& levels, const InArray& u, const InArray& y, const State& state,
+           const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& fold, const InArray& basis,
+           const std::string& interpolation) {
+            const auto kind = preisach::parse_interpolation(interpolation);
+            std::size_t nu = 0, ny = 0;
+            const double* pu = as_vector(u, "u", nu);
+            const double* py_ = as_vector(y, "y", ny);
+            if (fold.ndim() != 1 || std::size_t(fold.shape(0)) != nu || ny != nu)
+                throw std::invalid_argument("u, y and fold must be 1-D arrays of the same length (got " +
+                                            std::to_string(nu) + ", " + std::to_string(ny) + ", " +
+                                            std::to_string(fold.ndim() == 1 ? fold.shape(0) : -1) + ")");
+            if (basis.ndim() != 2 || std::size_t(basis.shape(0)) != nu || basis.shape(1) < 1)
+                throw std::invalid_argument("basis: must be " + std::to_string(nu) + " x k with k >= 1");
+            const std::int32_t* pf = fold.data();
+            const std::size_t nl = std::size_t(levels.size());
+            const py::ssize_t p = py::ssize_t(nl >= 2 ? nl * (nl - 1) / 2 + 1 : 1), k = basis.shape(1);
+            py::array_t<double> gram({p, p}), rhs(p), cross({p, k}), yy(1), ysum(1);
+            py::array_t<std::int64_t> count(1);
+            const preisach::NormalEquationsOut out{gram.mutable_data(), rhs.mutable_data(), yy.mutable_data(),
+                                                   ysum.mutable_data(), count.mutable_data()};
+            const preisach::BasisCross with{basis.data(), std::size_t(k), cross.mutable_data()};
+            State final_state;
+            {
+                py::gil_scoped_release release;
+                preisach::accumulate_normal_equations_into(levels, state, pu, py_, pf, nu, 1,
+                                                           preisach::InputPolicy::clamp, out, &final_state, kind,
+                                                           &with);
+            }
+            return py::make_tuple(gram, rhs, cross, final_state);
+        },
+        py::arg("levels"), py::arg("u"), py::arg("y"), py::arg("state"), py::arg("fold"), py::arg("basis"),
+        py::arg("interpolation") = "bilinear",
+        "Normal equations of y ~ r_t . theta over the samples with fold[t] == 0 (fold[t] < 0 only advances the "
+        "state; input clamped to the levels) with the rows' cross products with a basis in time (n x k): returns "
+        "(gram (p, p), rhs (p), cross (p, k) = sum r_t a_t^T, final_state); the GIL is released.");
 }

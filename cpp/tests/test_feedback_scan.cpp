@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/LU>
 #include <doctest/doctest.h>
 
 #include <preisach/feedback_scan.hpp>
@@ -112,6 +113,128 @@ TEST_CASE("feedback gain scan: the profiled SSE of every gain and zero, as a bru
     const auto again = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(),
                                                     U_MIN, U_MAX, ridge, theta0.data(), nullptr, 3);
     for (std::size_t k = 0; k < gains.size(); ++k) CHECK(again[k] == sse[k]);
+}
+
+namespace {
+
+// The drift basis of a recording of n samples: 1, t, t^2 with t = k / n (row-major n x 3).
+std::vector<double> drift_basis(std::size_t n) {
+    std::vector<double> a;
+    for (std::size_t k = 0; k < n; ++k) {
+        const double t = double(k) / double(n);
+        a.insert(a.end(), {1.0, t, t * t});
+    }
+    return a;
+}
+
+// (A^T A + pen I)^-1 over the given samples of a basis.
+RowMatrixXd drift_ginv(const std::vector<double>& a, const std::vector<std::size_t>& rows, double pen) {
+    RowMatrixXd g = pen * RowMatrixXd::Identity(3, 3);
+    for (std::size_t t : rows) {
+        const Eigen::Map<const Eigen::Vector3d> at(a.data() + 3 * t);
+        g += at * at.transpose();
+    }
+    return g.inverse();
+}
+
+}  // namespace
+
+TEST_CASE("feedback gain scan with a drift: weights and drift fitted jointly, as a brute-force fit") {
+    std::mt19937 g(5);
+    const auto lv = nonuniform_levels(6);
+    const EverettTable t = analytic_table(lv);
+    const double a_true = 0.01, y0_true = 5.0, pen = 1e-3, ridge = 1e-9;
+    const std::size_t stride = 2, every = 3;
+    const std::vector<State> s0{State::negative_saturation(U_MIN, U_MAX), State::neutral(U_MIN, U_MAX, 0.3)};
+    std::vector<Rec> recs{moving_record(t, s0[0], random_walk(g, 600, 0.0, 0.15), a_true, y0_true),
+                          moving_record(t, s0[1], random_walk(g, 450, 0.5, 0.15), a_true, y0_true)};
+    std::vector<std::vector<double>> bases;
+    std::vector<RowMatrixXd> fit_ginv, res_ginv;
+    std::vector<std::vector<std::size_t>> fit_rows(2), res_rows(2);
+    for (std::size_t i = 0; i < 2; ++i) {
+        Rec& r = recs[i];
+        for (std::size_t k = 0; k < r.y.size(); ++k) r.y[k] += 0.4 - 0.8 * double(k) / double(r.y.size());
+        bases.push_back(drift_basis(r.y.size()));
+        for (std::size_t k = 0; k < r.y.size(); ++k)
+            if (r.fold[k] == 0) fit_rows[i].push_back(k);
+        for (std::size_t q = 0; q < fit_rows[i].size(); q += stride) res_rows[i].push_back(fit_rows[i][q]);
+        fit_ginv.push_back(drift_ginv(bases[i], fit_rows[i], pen));
+        res_ginv.push_back(drift_ginv(bases[i], res_rows[i], pen));
+    }
+    const std::size_t p = 6 * 5 / 2 + 1;
+    Eigen::VectorXd theta0 = Eigen::VectorXd::Zero(Eigen::Index(p));
+    theta0[Eigen::Index(p - 1)] = Y_MIN;
+    const std::vector<double> gains{a_true, 0.0, -0.01, 0.02};
+    const std::vector<double> zeros{y0_true, 0.0, 3.0, 10.0};
+    std::vector<preisach::ScanRecording> views;
+    for (std::size_t i = 0; i < 2; ++i) {
+        const Rec& r = recs[i];
+        views.push_back({r.u.data(), r.p.data(), r.y.data(), r.fold.data(), r.u.size()});
+        views.back().k = 3;
+        views.back().basis = bases[i].data();
+        views.back().fit_ginv = fit_ginv[i].data();
+        views.back().res_ginv = res_ginv[i].data();
+        views.back().res_stride = stride;
+        views.back().score_every = every;
+    }
+    std::vector<State> states;
+    for (std::size_t k = 0; k < gains.size(); ++k) states.insert(states.end(), s0.begin(), s0.end());
+    const auto sse = preisach::feedback_gain_scan(lv, views, states, gains.data(), zeros.data(), gains.size(), U_MIN,
+                                                  U_MAX, ridge, theta0.data(), nullptr, 2);
+    double yy = 0.0;
+    for (const Rec& r : recs)
+        for (double v : r.y) yy += v * v;
+    for (std::size_t kp = 0; kp < gains.size(); ++kp) {
+        // the joint least squares of weights and both drifts (unknowns theta, c_0, c_1)
+        const Eigen::Index q = Eigen::Index(p) + 6;
+        RowMatrixXd J = RowMatrixXd::Zero(q, q);
+        Eigen::VectorXd rhs = Eigen::VectorXd::Zero(q);
+        std::vector<std::vector<Eigen::VectorXd>> rows(2);
+        for (std::size_t i = 0; i < 2; ++i) {
+            const Rec& r = recs[i];
+            std::vector<double> x(r.u.size());
+            for (std::size_t k = 0; k < x.size(); ++k)
+                x[k] = std::min(std::max(r.u[k] + gains[kp] * (r.p[k] - zeros[kp]), U_MIN), U_MAX);
+            const auto R = preisach::regressor_rows(lv, s0[i], x.data(), x.size(), preisach::InputPolicy::clamp);
+            for (std::size_t k : fit_rows[i]) {
+                Eigen::VectorXd row = Eigen::VectorXd::Zero(q);
+                for (auto e = R.indptr[k]; e < R.indptr[k + 1]; ++e)
+                    row[Eigen::Index(R.indices[std::size_t(e)])] = R.data[std::size_t(e)];
+                rows[i].push_back(row.head(Eigen::Index(p)));
+                for (Eigen::Index j = 0; j < 3; ++j) row[Eigen::Index(p) + 3 * Eigen::Index(i) + j] = bases[i][3 * k + j];
+                J += row * row.transpose();
+                rhs += row * r.y[k];
+            }
+            for (Eigen::Index j = 0; j < 3; ++j) J(Eigen::Index(p) + 3 * Eigen::Index(i) + j, Eigen::Index(p) + 3 * Eigen::Index(i) + j) += pen;
+        }
+        // the ridge on the weights, scaled by the trace of their normal matrix with the drift profiled out
+        const auto P = Eigen::Index(p);
+        const RowMatrixXd schur = J.topLeftCorner(P, P) - J.topRightCorner(P, 6) *
+                                                              J.bottomRightCorner(6, 6).inverse() *
+                                                              J.bottomLeftCorner(6, P);
+        const double lam = ridge * schur.trace() / double(p);
+        J.topLeftCorner(P, P).diagonal().array() += lam;
+        rhs.head(P) += lam * theta0;
+        const Eigen::VectorXd theta = J.ldlt().solve(rhs).head(P);
+        double ref = 0.0;
+        for (std::size_t i = 0; i < 2; ++i) {  // residuals at every stride-th row, freed of their drift fit
+            std::vector<double> e;
+            Eigen::Vector3d d = Eigen::Vector3d::Zero();
+            for (std::size_t m = 0; m < fit_rows[i].size(); m += stride) {
+                const std::size_t k = fit_rows[i][m];
+                e.push_back(recs[i].y[k] - rows[i][m].dot(theta));
+                d += e.back() * Eigen::Map<const Eigen::Vector3d>(bases[i].data() + 3 * k);
+            }
+            const Eigen::Vector3d w = res_ginv[i] * d;
+            for (std::size_t j = 0; j < e.size(); j += every) {
+                const std::size_t k = res_rows[i][j];
+                ref += std::pow(e[j] - Eigen::Map<const Eigen::Vector3d>(bases[i].data() + 3 * k).dot(w), 2);
+            }
+        }
+        CHECK(sse[kp] == doctest::Approx(ref).epsilon(1e-6).scale(1e-12 * yy));
+    }
+    // the drift is in the basis: the true feedback fits to the penalty's shrinkage, the others do not
+    for (std::size_t k : {1, 2, 3}) CHECK(sse[k] > 100.0 * sse[0]);
 }
 
 TEST_CASE("feedback gain scan: errors name the argument") {

@@ -309,6 +309,49 @@ TEST_CASE("regressor: errors name the sample, the raise policy and a range misma
     CHECK_THROWS_AS(EverettRegressor(lv, State::negative_saturation(U_MIN, U_MAX + 1.0)), std::invalid_argument);
 }
 
+TEST_CASE("normal equations with a basis: per-fold cross products sum r_t a_t^T of the rows with it") {
+    std::mt19937 g(9);
+    const auto lv = nonuniform_levels(7);
+    const auto u = random_walk(g, 900, 0.0, 0.2);
+    std::vector<double> y(u.size());
+    for (auto& v : y) v = uniform(g, -2.0, 2.0);
+    std::vector<std::int32_t> fold(u.size());
+    for (std::size_t k = 0; k < u.size(); ++k) fold[k] = k < 50 ? -1 : std::int32_t(k % 2);
+    const std::size_t nb = 4, p = 7 * 6 / 2 + 1;
+    std::vector<double> basis(u.size() * nb, 0.0);  // hat functions in time: two nonzeros per sample
+    for (std::size_t k = 0; k < u.size(); ++k) {
+        const double s = double(k) / double(u.size()) * double(nb - 1);
+        const std::size_t j = std::min(std::size_t(s), nb - 2);
+        basis[k * nb + j] = 1.0 - (s - double(j));
+        basis[k * nb + j + 1] = s - double(j);
+    }
+    const State s0 = State::negative_saturation(U_MIN, U_MAX);
+    std::vector<double> gram(2 * p * p), rhs(2 * p), yy(2), ysum(2), cross(2 * p * nb, 7.0);
+    std::vector<std::int64_t> count(2);
+    const preisach::BasisCross with{basis.data(), nb, cross.data()};
+    accumulate_normal_equations_into(lv, s0, u.data(), y.data(), fold.data(), u.size(), 2, InputPolicy::clamp,
+                                     {gram.data(), rhs.data(), yy.data(), ysum.data(), count.data()}, nullptr,
+                                     preisach::Interpolation::bilinear, &with);
+    const auto ne = accumulate_normal_equations(lv, s0, u.data(), y.data(), fold.data(), u.size(), 2,
+                                                InputPolicy::clamp);
+    const auto rows = regressor_rows(lv, s0, u.data(), u.size(), InputPolicy::clamp);
+    for (std::size_t f = 0; f < 2; ++f) {
+        RowMatrixXd C = RowMatrixXd::Zero(Eigen::Index(p), Eigen::Index(nb));
+        for (std::size_t k = 0; k < u.size(); ++k) {
+            if (fold[k] != std::int32_t(f)) continue;
+            for (auto q = rows.indptr[k]; q < rows.indptr[k + 1]; ++q)
+                for (std::size_t j = 0; j < nb; ++j)
+                    C(Eigen::Index(rows.indices[std::size_t(q)]), Eigen::Index(j)) +=
+                        rows.data[std::size_t(q)] * basis[k * nb + j];
+        }
+        const Eigen::Map<const RowMatrixXd> got(cross.data() + f * p * nb, Eigen::Index(p), Eigen::Index(nb));
+        CHECK((got - C).cwiseAbs().maxCoeff() < 1e-12 * C.cwiseAbs().maxCoeff());
+        // the normal equations themselves are those without the basis
+        const Eigen::Map<const RowMatrixXd> G(gram.data() + f * p * p, Eigen::Index(p), Eigen::Index(p));
+        CHECK((G - ne[f].gram).cwiseAbs().maxCoeff() == 0.0);
+    }
+}
+
 TEST_CASE("normal equations: per-fold sums of r r^T, r y and y^2, and fold -1 only advances the state") {
     std::mt19937 g(5);
     const auto lv = nonuniform_levels(8);

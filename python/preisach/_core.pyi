@@ -248,6 +248,15 @@ def normal_equations(
     NDArray[np.int64],
     State,
 ]: ...
+def normal_equations_basis(
+    levels: ArrayLike,
+    u: ArrayLike,
+    y: ArrayLike,
+    state: State,
+    fold: ArrayLike,
+    basis: ArrayLike,
+    interpolation: str = "bilinear",
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], State]: ...
 
 # --- play.hpp, moving.hpp (register_diagnose.cpp) ---
 def play_operator(
@@ -291,6 +300,9 @@ def feedback_gain_scan(
     reference: EverettTable | None = None,
     threads: int = 0,
     interpolation: str = "bilinear",
+    drift: Sequence[tuple[ArrayLike, ArrayLike, ArrayLike] | None] = (),
+    res_stride: int = 1,
+    score_every: int = 1,
 ) -> NDArray[np.float64]: ...
 
 # --- blocks/ (register_blocks.cpp) ---

@@ -16,6 +16,15 @@
 // table: z_t = y_t - (L(P_ref)_t - P_ref_t), P_ref the reference table's output for the same
 // relay input, and the prediction L(P) runs the fitted table.  Samples with fold[t] < 0 only
 // advance the relays.  Every point is independent: they run on several threads (batch.hpp).
+//
+// The residuals are taken at every res_stride-th row of a recording, and every score_every-th
+// of those counts in the SSE.  With a drift (no output filters), a smooth curve in time per
+// recording, A c with A the recording's time basis (n x k) and c free, is fitted jointly with
+// the weights: over the rows, with M = (A^T A + P)^-1 (fit_ginv, P the curve's penalty),
+//     sum r_t r_t^T - B M B^T  and  sum r_t z_t - B M A^T z,  B = sum r_t a_t^T,
+// replace the normal matrix and right-hand side (the drift profiled out); the residuals e at
+// the residual rows are then freed of their own drift fit, e - A_s M_s A_s^T e (res_ginv = M_s,
+// the same inverse at those rows), as diagnosis' Problem.residuals does.
 #pragma once
 
 #include <Eigen/Cholesky>
@@ -104,6 +113,14 @@ struct ScanRecording {
     const std::int32_t* fold;
     std::size_t n;
     std::vector<OutputFilter> filters{};
+    // the drift (see the file comment): k basis columns, basis n x k (row-major), fit_ginv and
+    // res_ginv k x k (row-major, symmetric); k = 0: none
+    std::size_t k = 0;
+    const double* basis = nullptr;
+    const double* fit_ginv = nullptr;
+    const double* res_ginv = nullptr;
+    std::size_t res_stride = 1;
+    std::size_t score_every = 1;
 };
 
 namespace detail {
@@ -125,6 +142,23 @@ struct FilterChain {
     }
 };
 
+// The nonzero entries of a dense row-major n x k matrix, by row (CSR).
+struct SparseRows {
+    std::vector<std::size_t> ptr{0}, col;
+    std::vector<double> val;
+    SparseRows() = default;
+    SparseRows(const double* a, std::size_t n, std::size_t k) {
+        for (std::size_t t = 0; t < n; ++t) {
+            for (std::size_t j = 0; j < k; ++j)
+                if (a[t * k + j] != 0.0) {
+                    col.push_back(j);
+                    val.push_back(a[t * k + j]);
+                }
+            ptr.push_back(col.size());
+        }
+    }
+};
+
 }  // namespace detail
 
 // Training SSE (V^2) of every scan point (see the file comment).  states[k * R + i] is the
@@ -138,10 +172,33 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
                                               const EverettTable* reference = nullptr, unsigned threads = 0,
                                               Interpolation interpolation = Interpolation::bilinear) {
     const std::size_t R = recs.size();
-    bool filtered = false;
-    for (const auto& r : recs) {
+    bool filtered = false, drifting = false;
+    for (std::size_t i = 0; i < recs.size(); ++i) {
+        const ScanRecording& r = recs[i];
         for (const auto& f : r.filters) f.validate();
         filtered = filtered || !r.filters.empty();
+        drifting = drifting || r.k > 0;
+        if (r.res_stride < 1 || r.score_every < 1)
+            throw std::invalid_argument("res_stride, score_every: recording " + std::to_string(i) +
+                                        " needs both >= 1");
+        if (r.k > 0 && (r.basis == nullptr || r.fit_ginv == nullptr || r.res_ginv == nullptr))
+            throw std::invalid_argument("drift: recording " + std::to_string(i) +
+                                        " needs its basis, fit_ginv and res_ginv");
+    }
+    if (filtered && drifting) throw std::invalid_argument("drift: not with output filters");
+    // the drift bases' nonzeros by sample (a B-spline basis has a few per sample), and the
+    // Cholesky factor L of fit_ginv = L L^T, shared by every point
+    std::vector<detail::SparseRows> bases(recs.size());
+    std::vector<Eigen::MatrixXd> chol(recs.size());
+    for (std::size_t i = 0; i < recs.size(); ++i) {
+        const ScanRecording& r = recs[i];
+        if (r.k == 0) continue;
+        bases[i] = detail::SparseRows(r.basis, r.n, r.k);
+        const Eigen::Index kd = Eigen::Index(r.k);
+        const Eigen::LLT<Eigen::MatrixXd> llt(Eigen::Map<const RowMatrixXd>(r.fit_ginv, kd, kd));
+        if (llt.info() != Eigen::Success)
+            throw std::invalid_argument("drift: recording " + std::to_string(i) + ": fit_ginv is not definite");
+        chol[i] = llt.matrixL();
     }
     if (filtered && reference == nullptr)
         throw std::invalid_argument("reference: output filters need the reference table");
@@ -169,17 +226,22 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
         std::size_t p = 0;
         RowMatrixXd G;
         Eigen::VectorXd b;
-        std::vector<std::uint32_t> idx;  // the rows, kept for the residuals
+        std::vector<std::uint32_t> idx;  // the residual rows, kept for the residuals
         std::vector<double> val, yrow;
-        std::vector<std::size_t> ptr{0};
+        std::vector<std::size_t> ptr{0}, trow, first(R + 1, 0);  // trow: each one's sample
         for (std::size_t i = 0; i < R; ++i) {
             const ScanRecording& r = recs[i];
+            first[i] = yrow.size();
             EverettRegressor reg(levels, states[k * R + i], interpolation);
             if (p == 0) {
                 p = reg.n_params();
                 G = RowMatrixXd::Zero(Eigen::Index(p), Eigen::Index(p));
                 b = Eigen::VectorXd::Zero(Eigen::Index(p));
             }
+            const Eigen::Index kd = Eigen::Index(r.k);
+            RowMatrixXd B = RowMatrixXd::Zero(r.k > 0 ? Eigen::Index(p) : 0, kd);  // sum r_t a_t^T
+            Eigen::VectorXd c = Eigen::VectorXd::Zero(kd);                          // sum a_t z_t
+            std::size_t n_rows = 0;
             const bool lin = !r.filters.empty();
             std::optional<Simulator> ref;
             if (lin) ref.emplace(*reference, states[k * R + i]);
@@ -195,19 +257,35 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
                 if (r.fold[t] < 0) continue;
                 const auto& ix = reg.row_index();
                 const auto& vx = reg.row_value();
-                for (std::size_t c = 0; c < ix.size(); ++c) {
-                    const double vc = vx[c];
-                    double* row = G.data() + std::size_t(ix[c]) * p;
-                    for (std::size_t e = c; e < ix.size(); ++e) row[ix[e]] += vc * vx[e];  // upper triangle
-                    b[Eigen::Index(ix[c])] += vc * yt;
+                for (std::size_t e0 = 0; e0 < ix.size(); ++e0) {
+                    const double vc = vx[e0];
+                    double* row = G.data() + std::size_t(ix[e0]) * p;
+                    for (std::size_t e = e0; e < ix.size(); ++e) row[ix[e]] += vc * vx[e];  // upper triangle
+                    b[Eigen::Index(ix[e0])] += vc * yt;
                 }
-                if (filtered) continue;  // the residuals come from a simulation below
+                if (r.k > 0) {
+                    const detail::SparseRows& a = bases[i];
+                    for (std::size_t q = a.ptr[t]; q < a.ptr[t + 1]; ++q) {
+                        const Eigen::Index j = Eigen::Index(a.col[q]);
+                        const double aq = a.val[q];
+                        for (std::size_t e0 = 0; e0 < ix.size(); ++e0) B(Eigen::Index(ix[e0]), j) += vx[e0] * aq;
+                        c[j] += yt * aq;
+                    }
+                }
+                if (filtered || n_rows++ % r.res_stride != 0) continue;  // filtered: simulated below
                 idx.insert(idx.end(), ix.begin(), ix.end());
                 val.insert(val.end(), vx.begin(), vx.end());
                 yrow.push_back(yt);
+                trow.push_back(t);
                 ptr.push_back(idx.size());
             }
+            if (r.k > 0) {  // the drift profiled out: B M B^T = (B L)(B L)^T, upper triangle only
+                const Eigen::MatrixXd BL = B * chol[i];
+                G.selfadjointView<Eigen::Upper>().rankUpdate(BL, -1.0);
+                b.noalias() -= BL * (chol[i].transpose() * c);
+            }
         }
+        first[R] = yrow.size();
         if (p == 0) return;  // no recording
         const double lam = ridge * std::max(G.trace() / double(p), 1e-300);
         for (std::size_t c = 0; c < p; ++c) G(Eigen::Index(c), Eigen::Index(c)) += lam;
@@ -228,10 +306,11 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
                 const ScanRecording& r = recs[i];
                 Simulator sim(table, states[k * R + i]);
                 detail::FilterChain chain(r.filters);
+                std::size_t n_rows = 0;
                 for (std::size_t t = 0; t < r.n; ++t) {
                     const double x = std::min(std::max(r.u[t] + a * (r.p[t] - yk), u_min), u_max);
                     const double out = chain.step(sim.step(x));
-                    if (r.fold[t] < 0) continue;
+                    if (r.fold[t] < 0 || n_rows++ % (r.res_stride * r.score_every) != 0) continue;
                     const double res = r.y[t] - out;
                     s += res * res;
                 }
@@ -240,11 +319,28 @@ inline std::vector<double> feedback_gain_scan(const VectorRef& levels, const std
             return;
         }
         double s = 0.0;
-        for (std::size_t q = 0; q + 1 < ptr.size(); ++q) {
-            double pred = 0.0;
-            for (std::size_t e = ptr[q]; e < ptr[q + 1]; ++e) pred += val[e] * theta[Eigen::Index(idx[e])];
-            const double res = yrow[q] - pred;
-            s += res * res;
+        std::vector<double> res;
+        for (std::size_t i = 0; i < R; ++i) {
+            const ScanRecording& r = recs[i];
+            res.assign(first[i + 1] - first[i], 0.0);
+            for (std::size_t q = first[i]; q < first[i + 1]; ++q) {
+                double pred = 0.0;
+                for (std::size_t e = ptr[q]; e < ptr[q + 1]; ++e) pred += val[e] * theta[Eigen::Index(idx[e])];
+                res[q - first[i]] = yrow[q] - pred;
+            }
+            if (r.k > 0) {  // each recording's residual freed of its drift fit
+                const detail::SparseRows& a = bases[i];
+                Eigen::VectorXd d = Eigen::VectorXd::Zero(Eigen::Index(r.k));
+                for (std::size_t q = first[i]; q < first[i + 1]; ++q)
+                    for (std::size_t e = a.ptr[trow[q]]; e < a.ptr[trow[q] + 1]; ++e)
+                        d[Eigen::Index(a.col[e])] += res[q - first[i]] * a.val[e];
+                const Eigen::VectorXd w =
+                    Eigen::Map<const RowMatrixXd>(r.res_ginv, Eigen::Index(r.k), Eigen::Index(r.k)) * d;
+                for (std::size_t q = first[i]; q < first[i + 1]; ++q)
+                    for (std::size_t e = a.ptr[trow[q]]; e < a.ptr[trow[q] + 1]; ++e)
+                        res[q - first[i]] -= a.val[e] * w[Eigen::Index(a.col[e])];
+            }
+            for (std::size_t j = 0; j < res.size(); j += r.score_every) s += res[j] * res[j];
         }
         sse[k] = s;
     });

@@ -295,14 +295,25 @@ struct NormalEquationsOut {
     std::int64_t* count;
 };
 
+// Cross products of the rows with a basis in time: cross (K x p x k, row-major) receives
+// sum r_t a_t^T per fold, a_t the row t of `basis` (n x k, row-major), e.g. a drift's
+// B-splines, to be profiled out of the normal equations.
+struct BasisCross {
+    const double* basis;
+    std::size_t k;
+    double* cross;
+};
+
 // Run the input from `state` and add every sample t with fold[t] in [0, n_folds) to the normal
 // equations of that fold (fold[t] < 0: the sample only advances the state, e.g. a burn-in),
-// straight into the caller's buffers.  `final_state` receives the boundary after the last sample.
+// straight into the caller's buffers.  `final_state` receives the boundary after the last sample;
+// `with`, when given, the rows' cross products with a basis.
 inline void accumulate_normal_equations_into(const VectorRef& levels, const State& state, const double* u,
                                              const double* y, const std::int32_t* fold, std::size_t n,
                                              int n_folds, InputPolicy policy, NormalEquationsOut out,
                                              State* final_state = nullptr,
-                                             Interpolation interpolation = Interpolation::bilinear) {
+                                             Interpolation interpolation = Interpolation::bilinear,
+                                             const BasisCross* with = nullptr) {
     if (n_folds < 1) throw std::invalid_argument("n_folds: must be >= 1, got " + std::to_string(n_folds));
     EverettRegressor reg(levels, state, interpolation);
     const std::size_t p = reg.n_params(), K = std::size_t(n_folds);
@@ -311,6 +322,7 @@ inline void accumulate_normal_equations_into(const VectorRef& levels, const Stat
     std::fill(out.yy, out.yy + K, 0.0);
     std::fill(out.ysum, out.ysum + K, 0.0);
     std::fill(out.count, out.count + K, std::int64_t(0));
+    if (with) std::fill(with->cross, with->cross + K * p * with->k, 0.0);
     for (std::size_t t = 0; t < n; ++t) {
         if (fold[t] >= n_folds)
             throw std::invalid_argument("fold[" + std::to_string(t) + "] = " + std::to_string(fold[t]) +
@@ -330,6 +342,14 @@ inline void accumulate_normal_equations_into(const VectorRef& levels, const Stat
             double* row = G + std::size_t(ix[a]) * p;
             for (std::size_t c = a; c < k; ++c) row[ix[c]] += va * vx[c];  // upper triangle (ix ascending)
             b[ix[a]] += va * yt;
+        }
+        if (with) {  // only the basis row's nonzeros (a B-spline basis has a few)
+            const double* at = with->basis + t * with->k;
+            double* C = with->cross + f * p * with->k;
+            for (std::size_t j = 0; j < with->k; ++j) {
+                if (at[j] == 0.0) continue;
+                for (std::size_t a = 0; a < k; ++a) C[std::size_t(ix[a]) * with->k + j] += vx[a] * at[j];
+            }
         }
         out.yy[f] += yt * yt;
         out.ysum[f] += yt;

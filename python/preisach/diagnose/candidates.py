@@ -1035,34 +1035,38 @@ class _FeedbackFit:
 
 
 def _scan_gain(
-    ctx: Context, cand: Candidate, make: Any, g: float, lo: float, hi: float
+    ctx: Context,
+    cand: NonCongruenceCandidate | SplineFeedbackCandidate,
+    g: float,
+    lo: float,
+    hi: float,
 ) -> list[Array]:
     """Return a feedback's starting values: its linear gain scanned densely, five zeros.
 
     The training error is rough in the gain (see :class:`NonCongruenceCandidate`), so the
     gain must be found on a fine grid: 161 values over ``[-g, g]`` (steps shifting the relays'
-    input by 0.6 % of its span at the ends of the output range), with the zero
-    ``make(a, y_c)`` at five levels across the output range, each evaluated by the problem's
-    cheap coarse training error; returns the best of each zero level.  A coarser scan (every
-    fourth gain, refined near the best points) missed the minimum on the proof's moving-model
-    case (feedback slope 2.4 V/V against a truth of 5.3; this scan 5.1).  The linear feedback
-    of :class:`NonCongruenceCandidate` is scanned in one C++ call where the problem allows
+    input by 0.6 % of its span at the ends of the output range), with the zero of the linear
+    feedback ``cand.linear(a, y_c)`` at five levels across the output range, each evaluated by
+    the problem's cheap coarse training error; returns the best of each zero level.  A coarser
+    scan (every fourth gain, refined near the best points) missed the minimum on the proof's
+    moving-model case (feedback slope 2.4 V/V against a truth of 5.3; this scan 5.1).  The
+    points are scanned in one C++ call where the problem allows
     (:meth:`~preisach.diagnose.problem.Problem.linear_feedback_scan`: about 3 x less CPU on
-    the six-recording benchmark, the same best gains).
+    the six-recording benchmark, the same best gains), else point by point.
     """
     fine = np.linspace(-g, g, 161)
     zeros = [lo + f * (hi - lo) for f in (0.1, 0.3, 0.5, 0.7, 0.9)]
     pts = [(float(a), yc) for yc in zeros for a in fine]
     prob = ctx._problem
     if prob is None:
-        return [make(a, yc) for a, yc in pts[:1]]
-    xs = [prob.clip(make(a, yc)) for a, yc in pts]
-    fast = None
-    if isinstance(cand, NonCongruenceCandidate):  # the linear feedback: all points in C++
-        fast = prob.linear_feedback_scan(np.array([x[0] for x in xs]), np.array([x[3] for x in xs]))
-    sse = np.array(prob.sse_many(xs, coarse=True) if fast is None else fast)
+        return [cand.linear(a, yc) for a, yc in pts[:1]]
+    # the C++ scan runs the straight lines themselves; point by point, the spline's outer
+    # coefficients (beyond the output range) are clipped to their bounds at gains above 0.8 g
+    sse = prob.linear_feedback_scan(np.array([a for a, _ in pts]), np.array([y for _, y in pts]))
+    if sse is None:
+        sse = np.array(prob.sse_many([prob.clip(cand.linear(a, y)) for a, y in pts], coarse=True))
     m = fine.size
-    return [make(*pts[int(np.argmin(sse[k * m : (k + 1) * m])) + k * m]) for k in range(5)]
+    return [cand.linear(*pts[int(np.argmin(sse[k * m : (k + 1) * m])) + k * m]) for k in range(5)]
 
 
 class NonCongruenceCandidate(_FeedbackFit, Candidate):
@@ -1106,9 +1110,16 @@ class NonCongruenceCandidate(_FeedbackFit, Candidate):
         g = self.limit
         lo, hi = self.y_lo, self.y_hi
         mid = 0.5 * (lo + hi)
-        best = _scan_gain(ctx, self, lambda a, yc: np.array([a, 0.0, 0.0, yc]), g, lo, hi)
+        best = _scan_gain(ctx, self, g, lo, hi)
         best += [np.array([0.0, s * f * g, 0.0, mid]) for s in (-1, 1) for f in (0.01, 0.05)]
         return ctx.grid_search(self, best, top=3)
+
+    #: Output range (V) over which :meth:`linear` is linear in the output: all of it.
+    linear_range: ClassVar[tuple[float, float]] = (-np.inf, np.inf)
+
+    def linear(self, a: float, y_c: float) -> Array:
+        """Parameters of the linear feedback ``a (y - y_c)`` (V/V, V)."""
+        return np.array([a, 0.0, 0.0, y_c])
 
     def params(self, x: Array) -> dict[str, Any]:
         return {
@@ -1180,14 +1191,22 @@ class SplineFeedbackCandidate(_FeedbackFit, Candidate):
         return [ParamSpec(f"c{i}", "V", -bound, bound, 0.01 * bound) for i in range(self.N_COEF)]
 
     def linear(self, a: float, y_c: float) -> Array:
-        """Coefficients of the linear feedback ``a (y - y_c)`` (V/V, V)."""
+        """Coefficients of the linear feedback ``a (y - y_c)`` (V/V, V) within :attr:`linear_range`.
+
+        Outside it the spline is constant at its end values: ``a (clip(y) - y_c)``.
+        """
         return np.asarray(a * (self.knots - y_c))
+
+    @property
+    def linear_range(self) -> tuple[float, float]:
+        """Output range (V) the spline spans (set by :meth:`prepare`)."""
+        return self.y_lo, self.y_hi
 
     def starts(self, ctx: Context) -> list[Array]:
         g = self.limit
         lo, hi = self.y_lo, self.y_hi
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        best = _scan_gain(ctx, self, self.linear, g, lo, hi)
+        best = _scan_gain(ctx, self, g, lo, hi)
         q = (self.knots - mid) / half
         best += [s * f * g * half * q * q for s in (-1, 1) for f in (0.01, 0.05)]
         return ctx.grid_search(self, best, top=3)

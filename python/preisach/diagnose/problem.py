@@ -52,16 +52,20 @@ class Problem:
         self.hi = np.array([s.hi for s in specs], float)
         self.scale = np.array([s.scale for s in specs], float)
         n_train = int(sum(int(m.sum()) for m in train))
-        stride = max(1, int(math.ceil(n_train / ctx.max_fit_samples)))
-        self.idx = [np.flatnonzero(m)[::stride] for m in train]
+        self.stride = max(1, int(math.ceil(n_train / ctx.max_fit_samples)))
+        self.idx = [np.flatnonzero(m)[:: self.stride] for m in train]
         self.coarse = [ix[::4] for ix in self.idx]
         self.blocks = np.concatenate([ctx.recs[i].block[ix] for i, ix in enumerate(self.idx)])
         self.proj: list[tuple[Array, Any] | None] = []
+        # the inverse penalised drift systems: at the residual rows (proj), at the training rows
+        self.fit_ginv: dict[int, Array] = {}
         for i, ix in enumerate(self.idx):
             if drift and ix.size:
                 A = ctx.drift_basis(i)[ix]
                 G, _ = ctx._drift_system(A)
                 self.proj.append((A, np.linalg.inv(G)))
+                G, _ = ctx._drift_system(ctx.drift_basis(i)[train[i]])
+                self.fit_ginv[i] = np.asarray(np.linalg.inv(G), dtype=float)
             else:
                 self.proj.append(None)
         effs = fixed.effects
@@ -133,14 +137,12 @@ class Problem:
 
         ``coarse``: for an input-side or feedback candidate without drift, accumulate the
         normal equations over every fourth training sample only (the quick evaluations of a
-        start-value scan).
+        start-value scan); with a drift they are always fitted on every training sample.
         """
         return self._theta(x, coarse, False)[0]
 
-    def _theta(
-        self, x: Array, coarse: bool, serial: bool
-    ) -> tuple[Array, dict[int, Array] | None, dict[int, sp.csr_matrix] | None]:
-        """:meth:`theta`, with the relay inputs or regressors it used (nothing stored).
+    def _theta(self, x: Array, coarse: bool, serial: bool) -> tuple[Array, dict[int, Array] | None]:
+        """:meth:`theta`, with the relay inputs it used (None for an output-side candidate).
 
         ``serial``: the recordings one after the other in this thread (when the evaluations
         themselves run in parallel, :meth:`sse_many`), else one per core.
@@ -154,14 +156,11 @@ class Problem:
             theta = ctx.solve_theta(
                 Rs, targets, self.train, self.drift, self.cacheable, self.factor
             )
-            return theta, None, None
+            return theta, None
         effs = [*self.fixed.effects, FittedEffect(self.cand, x)]
-        if self.drift:  # the drift projection needs the regressors themselves
-            Rs, targets, _ = ctx.linearised_targets(
-                effs, self.fixed.base, self.train, self.feedback_from
-            )
-            return ctx.solve_theta(Rs, targets, self.train, self.drift, False), None, Rs
-        # normal equations straight from the C++ regressor, without forming it
+        # normal equations straight from the C++ regressor, without forming it; a drift is
+        # profiled out of them as ctx.solve_theta does, from the rows' cross products with its
+        # basis, fitted on every training sample
         outs = [e for e in effs if e.cand.side == "output"]
         p = ctx.n_theta
         ctx.table(self.fixed.base)  # built once, before the threads share it
@@ -183,12 +182,18 @@ class Problem:
                 target = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y
             else:
                 ue, target = ue_open, r.y
-            fold = self._fold(i, coarse)
             s0 = ctx.state(i, self.fixed.base, ue)
-            gram, b, *_ = _core.normal_equations(
-                ctx.levels, ue, target, s0, fold, 1, "clamp", ctx.interpolation
+            if not self.drift:
+                gram, b, *_ = _core.normal_equations(
+                    ctx.levels, ue, target, s0, self._fold(i, coarse), 1, "clamp", ctx.interpolation
+                )
+                return gram[0], b[0], ue
+            A, m = ctx.drift_basis(i), self.train[i]
+            g, b, cross, _ = _core.normal_equations_basis(
+                ctx.levels, ue, target, s0, self._fold(i, False), A, ctx.interpolation
             )
-            return gram[0], b[0], ue
+            cg = cross @ self.fit_ginv[i]
+            return g - cg @ cross.T, b - cg @ (A[m].T @ target[m]), ue
 
         # the recordings are independent and the C++ loops release the GIL: one per core,
         # summed in recording order so the result does not depend on the threads
@@ -208,7 +213,7 @@ class Problem:
             linalg.cho_solve(linalg.cho_factor(N, check_finite=False), rhs, check_finite=False),
             dtype=float,
         )
-        return theta, last_u, None
+        return theta, last_u
 
     def _fold(self, i: int, coarse: bool) -> NDArray[np.int32]:
         """Fold labels of recording ``i`` for the normal equations (0: a row; -1: state only)."""
@@ -226,7 +231,7 @@ class Problem:
     def _profiled_predict(
         self, x: Array, coarse: bool = False, serial: bool = False
     ) -> dict[int, Array]:
-        theta, last_u, last_R = self._theta(x, coarse, serial)
+        theta, last_u = self._theta(x, coarse, serial)
         if self.cand.side != "output" and last_u is not None:
             table = self.ctx.table(Base(theta))
             ctx, last = self.ctx, last_u
@@ -237,9 +242,7 @@ class Problem:
 
             Ps = dict(zip(last, (map if serial else _pool().map)(sim, last)))
         else:
-            Rs = self.R if self.cand.side == "output" else last_R
-            assert Rs is not None
-            Ps = {i: R @ theta for i, R in Rs.items()}
+            Ps = {i: R @ theta for i, R in self.R.items()}
         out = {}
         for i, P in Ps.items():
             if self.cand.side == "output":
@@ -286,29 +289,40 @@ class Problem:
     def linear_feedback_scan(self, gains: Array, zeros: Array) -> Array | None:
         """Coarse training SSE (V^2) of the linear feedback ``a (y - y_c)`` at every point, in C++.
 
-        The same numbers as :meth:`sse_many` of the vectors ``(a, 0, 0, y_c)`` of
-        :class:`~preisach.diagnose.candidates.NonCongruenceCandidate` (up to rounding: the
+        The same numbers as :meth:`sse_many` of the feedback candidate's vectors
+        ``cand.linear(a, y_c)`` (the cubic feedback of
+        :class:`~preisach.diagnose.candidates.NonCongruenceCandidate` with no curvature, or a
+        straight :class:`~preisach.diagnose.candidates.SplineFeedbackCandidate`, whose feedback
+        is constant outside its output range: the fed-back output is clipped to
+        ``cand.linear_range`` first), up to rounding (the
         weights by a Cholesky factor of the summed normal equations, the prediction from the
         regressor's rows instead of a simulation of the fitted table), in one call
         (``preisach._core.feedback_gain_scan``) whose points run on every core with the GIL
         released.  Output blocks in the fixed chain that are linear filters run in C++ too
-        (linearised about the reference base as :meth:`theta` does).  None when the shortcut
-        does not apply: no profiled weights, a drift, another output block, or a feedback
-        effect already fitted; then use :meth:`sse_many`.  ``gains`` and ``zeros`` must lie
+        (linearised about the reference base as :meth:`theta` does).  A drift is profiled out
+        in C++ as :meth:`theta` and :meth:`residuals` do it: the weights fitted on every
+        training sample with each recording's drift curve, the residuals at the subsampled
+        rows freed of their own drift fit.  None when the shortcut does not apply: no profiled
+        weights, another output block (or a linear filter with a drift), or a feedback effect
+        already fitted; then use :meth:`sse_many`.  ``gains`` and ``zeros`` must lie
         within the candidate's bounds (see :meth:`clip`).
         """
-        from .candidates import NonCongruenceCandidate
-        from .effects import OutputFeedback
+        from .candidates import NonCongruenceCandidate, SplineFeedbackCandidate
+        from .effects import OutputFeedback, SplineFeedback
 
         ctx = self.ctx
+        cand = cast("NonCongruenceCandidate | SplineFeedbackCandidate", self.cand)
         todo = [i for i, m in enumerate(self.train) if m.any()]
         filters = self._linear_filters(todo)
+        linear = (
+            (NonCongruenceCandidate, OutputFeedback),
+            (SplineFeedbackCandidate, SplineFeedback),
+        )
         if (
-            not isinstance(self.cand, NonCongruenceCandidate)
-            or self.cand.block_type is not OutputFeedback
+            not any(isinstance(cand, c) and cand.block_type is b for c, b in linear)
             or not self.profile
-            or self.drift
             or filters is None
+            or (self.drift and any(filters))
             or self.feedback_from is None
             or not todo
             or any(i not in self.u_in for i in todo)
@@ -317,17 +331,22 @@ class Problem:
         gains = np.asarray(gains, float)
         zeros = np.asarray(zeros, float)
         lo, hi = ctx.model.u_min, ctx.model.u_max
-        us, ps, ys, folds = [], [], [], []
+        us, ps, ys, folds, drift = [], [], [], [], []
         per_rec: list[list[Any]] = []  # every point's initial state, by recording
         for i in todo:
             fb = self.feedback_from[i]
             if i not in self._prev:
                 self._prev[i] = ctx.previous(fb)
-            u, prev = self.u_in[i], self._prev[i]
+            u, prev = self.u_in[i], np.clip(self._prev[i], *cand.linear_range)
             us.append(u)
             ps.append(prev)
             ys.append(ctx.recs[i].y)
-            folds.append(self._fold(i, True))
+            # with a drift the weights are fitted on every training sample (as ctx.solve_theta)
+            folds.append(self._fold(i, not self.drift))
+            if self.drift:
+                proj = self.proj[i]
+                assert proj is not None
+                drift.append((ctx.drift_basis(i), self.fit_ginv[i], proj[1]))
             h = ctx.history(i, self.fixed.base)
             if h is None:  # a known initial state
                 per_rec.append([ctx.recs[i].state0] * gains.size)
@@ -362,13 +381,16 @@ class Problem:
                 filters=filters,
                 reference=ctx.table(self.fixed.base) if any(filters) else None,
                 interpolation=ctx.interpolation,
+                drift=drift,
+                res_stride=self.stride if self.drift else 1,
+                score_every=4 if self.drift else 1,
             ),
             dtype=np.float64,
         )
         ctx.n_evals += int(gains.size)
-        n_rows = int(sum(int((fd == 0).sum()) for fd in folds))
+        n_rows = int(sum(ix.size for ix in self.coarse))
         for k in range(gains.size):  # a candidate's regularisation, as in :meth:`residuals`
-            pen = self.cand.penalty(np.array([gains[k], 0.0, 0.0, zeros[k]]), n_rows)
+            pen = cand.penalty(cand.linear(float(gains[k]), float(zeros[k])), n_rows)
             sse[k] += float(pen @ pen) if pen.size else 0.0
         return sse
 
