@@ -8,8 +8,8 @@ normal equations with the rows' cross products with the basis
 (``preisach._core.normal_equations_basis``, :meth:`Problem.theta`), and the moving-model
 candidate's start-value scan of 805 linear feedbacks runs in one C++ call with the drift
 (:meth:`Problem.linear_feedback_scan`) instead of point by point.  On blind seed 47's case 013
-(a 1/f drift, six 9-14 s recordings) one diagnosis took 420 s before and 278 s with the scan
-alone moved to C++ (separate runs on an idle machine).
+(a 1/f drift, six 9-14 s recordings) one diagnosis took 420 s before, 278 s with the scan
+alone moved to C++ and 184 s with both (separate runs on an idle machine, the same verdict).
 
 Timed here in one run, on a drift case of the package's own generator (six recordings of at
 least 10 s at 1 kHz), on the model's grid and on the 41-level grid diagnosis refits on:

@@ -184,6 +184,21 @@ def test_non_congruence_named_on_a_saturating_interaction():
     assert rep.rmse_after < 0.5 * rep.rmse_before, rep.summary()
 
 
+def _prepared(feedback_case, candidate: str):
+    """The feedback case's context (weights refitted), its first fold and the candidate."""
+    from preisach.diagnose import candidates as cands
+    from preisach.diagnose.context import Context
+    from preisach.diagnose.data import prepare_recordings
+    from preisach.diagnose.scoring import make_folds
+
+    case, model = feedback_case
+    recs = prepare_recordings(model, case.recordings, identification=[case.identification])
+    ctx = Context(model, recs, refit=True)
+    cand = getattr(cands, candidate)()
+    cand.prepare(ctx)
+    return ctx, make_folds(recs, "blocks")[0], cand
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "candidate, drift",
@@ -204,20 +219,12 @@ def test_the_gain_scan_in_cpp_gives_the_point_by_point_numbers(feedback_case, ca
     residuals taken at every third of them (a small ``max_fit_samples``), freed of their own
     drift fit, every fourth counted: the C++ scan must do all of it as the Python path does.
     """
-    from preisach.diagnose import candidates as cands
-    from preisach.diagnose.context import Chain, Context
-    from preisach.diagnose.data import prepare_recordings
+    from preisach.diagnose.context import Chain
     from preisach.diagnose.problem import Problem
-    from preisach.diagnose.scoring import make_folds
 
-    case, model = feedback_case
-    recs = prepare_recordings(model, case.recordings, identification=[case.identification])
-    ctx = Context(model, recs, refit=True)
-    fold = make_folds(recs, "blocks")[0]
-    cand = getattr(cands, candidate)()
-    cand.prepare(ctx)
+    ctx, fold, cand = _prepared(feedback_case, candidate)
     if candidate == "SplineFeedbackCandidate":
-        y = np.concatenate([r.y for r in recs])
+        y = np.concatenate([r.y for r in ctx.recs])
         lo, hi = np.quantile(y, [0.2, 0.8])
         cand.y_lo, cand.y_hi = float(lo), float(hi)
         cand.fixed = {"y_lo": cand.y_lo, "y_hi": cand.y_hi}
@@ -251,18 +258,10 @@ def test_profiled_weights_with_a_drift_are_those_of_the_drift_projected_solve(
     ``x``: the feedback's gains as shares of its bound and its zero as a share of the output
     range, or the input lag (s).
     """
-    from preisach.diagnose import candidates as cands
-    from preisach.diagnose.context import Chain, Context, FittedEffect
-    from preisach.diagnose.data import prepare_recordings
+    from preisach.diagnose.context import Chain, FittedEffect
     from preisach.diagnose.problem import Problem
-    from preisach.diagnose.scoring import make_folds
 
-    case, model = feedback_case
-    recs = prepare_recordings(model, case.recordings, identification=[case.identification])
-    ctx = Context(model, recs, refit=True)
-    fold = make_folds(recs, "blocks")[0]
-    cand = getattr(cands, candidate)()
-    cand.prepare(ctx)
+    ctx, fold, cand = _prepared(feedback_case, candidate)
     base = ctx.refit_base([], ctx.given, fold.train, True)
     if candidate == "NonCongruenceCandidate":
         g, (lo, hi) = cand.limit, (ctx.y_lo, ctx.y_hi)

@@ -1,6 +1,8 @@
 // Bindings of the identification core (preisach/identify.hpp, preisach/regressor.hpp).
 #include "common.hpp"
 
+#include <tuple>
+
 #include <preisach/identify.hpp>
 #include <preisach/regressor.hpp>
 
@@ -18,6 +20,21 @@ preisach::GapPolicy parse_gaps(const std::string& s) {
 template <class T>
 py::array_t<T> to_array(const std::vector<T>& v) {
     return py::array_t<T>(py::ssize_t(v.size()), v.data());
+}
+
+using FoldArray = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
+
+// The input and output of the normal equations and their length, checked against the folds.
+std::tuple<const double*, const double*, std::size_t> fold_series(const InArray& u, const InArray& y,
+                                                                   const FoldArray& fold) {
+    std::size_t nu = 0, ny = 0;
+    const double* pu = as_vector(u, "u", nu);
+    const double* py_ = as_vector(y, "y", ny);
+    if (fold.ndim() != 1 || std::size_t(fold.shape(0)) != nu || ny != nu)
+        throw std::invalid_argument("u, y and fold must be 1-D arrays of the same length (got " +
+                                    std::to_string(nu) + ", " + std::to_string(ny) + ", " +
+                                    std::to_string(fold.ndim() == 1 ? fold.shape(0) : -1) + ")");
+    return {pu, py_, nu};
 }
 
 }  // namespace
@@ -103,17 +120,11 @@ void register_identify(py::module_& m) {
     m.def(
         "normal_equations",
         [](const Eigen::VectorXd& levels, const InArray& u, const InArray& y, const State& state,
-           const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& fold, int n_folds,
+           const FoldArray& fold, int n_folds,
            const std::string& out_of_range, const std::string& interpolation) {
             const auto policy = parse_policy(out_of_range);
             const auto kind = preisach::parse_interpolation(interpolation);
-            std::size_t nu = 0, ny = 0;
-            const double* pu = as_vector(u, "u", nu);
-            const double* py_ = as_vector(y, "y", ny);
-            if (fold.ndim() != 1 || std::size_t(fold.shape(0)) != nu || ny != nu)
-                throw std::invalid_argument("u, y and fold must be 1-D arrays of the same length (got " +
-                                            std::to_string(nu) + ", " + std::to_string(ny) + ", " +
-                                            std::to_string(fold.ndim() == 1 ? fold.shape(0) : -1) + ")");
+            const auto [pu, py_, nu] = fold_series(u, y, fold);
             if (n_folds < 1) throw std::invalid_argument("n_folds: must be >= 1, got " + std::to_string(n_folds));
             const std::int32_t* pf = fold.data();
             const std::size_t nl = std::size_t(levels.size());
@@ -139,16 +150,10 @@ void register_identify(py::module_& m) {
     m.def(
         "normal_equations_basis",
         [](const Eigen::VectorXd& levels, const InArray& u, const InArray& y, const State& state,
-           const py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>& fold, const InArray& basis,
+           const FoldArray& fold, const InArray& basis,
            const std::string& interpolation) {
             const auto kind = preisach::parse_interpolation(interpolation);
-            std::size_t nu = 0, ny = 0;
-            const double* pu = as_vector(u, "u", nu);
-            const double* py_ = as_vector(y, "y", ny);
-            if (fold.ndim() != 1 || std::size_t(fold.shape(0)) != nu || ny != nu)
-                throw std::invalid_argument("u, y and fold must be 1-D arrays of the same length (got " +
-                                            std::to_string(nu) + ", " + std::to_string(ny) + ", " +
-                                            std::to_string(fold.ndim() == 1 ? fold.shape(0) : -1) + ")");
+            const auto [pu, py_, nu] = fold_series(u, y, fold);
             if (basis.ndim() != 2 || std::size_t(basis.shape(0)) != nu || basis.shape(1) < 1)
                 throw std::invalid_argument("basis: must be " + std::to_string(nu) + " x k with k >= 1");
             const std::int32_t* pf = fold.data();
