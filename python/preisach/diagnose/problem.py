@@ -57,15 +57,21 @@ class Problem:
         self.coarse = [ix[::4] for ix in self.idx]
         self.blocks = np.concatenate([ctx.recs[i].block[ix] for i, ix in enumerate(self.idx)])
         self.proj: list[tuple[Array, Any] | None] = []
-        # the inverse penalised drift systems: at the residual rows (proj), at the training rows
+        # the inverse penalised drift systems: at the residual rows (proj) and, for the weights
+        # an input-side or feedback candidate profiles (:meth:`_theta`), at the training rows
+        # (the same ones when no training sample is skipped)
         self.fit_ginv: dict[int, Array] = {}
         for i, ix in enumerate(self.idx):
             if drift and ix.size:
                 A = ctx.drift_basis(i)[ix]
                 G, _ = ctx._drift_system(A)
-                self.proj.append((A, np.linalg.inv(G)))
-                G, _ = ctx._drift_system(ctx.drift_basis(i)[train[i]])
-                self.fit_ginv[i] = np.asarray(np.linalg.inv(G), dtype=float)
+                ginv = np.asarray(np.linalg.inv(G), dtype=float)
+                self.proj.append((A, ginv))
+                if cand.side != "output":
+                    if self.stride > 1:
+                        G, _ = ctx._drift_system(ctx.drift_basis(i)[train[i]])
+                        ginv = np.asarray(np.linalg.inv(G), dtype=float)
+                    self.fit_ginv[i] = ginv
             else:
                 self.proj.append(None)
         effs = fixed.effects
