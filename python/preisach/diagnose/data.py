@@ -51,16 +51,22 @@ class History:
     anhysteretic: State | None = None
     left: State | None = None
 
-    def state(self, x: Array) -> State:
-        """Return the relays' state after this history, for the relay input ``x`` (V) after it."""
-        return self.state_of(float(x[0]), float(np.min(x)), float(np.max(x)))
+    def state(self, x: Array, left: State | None = None) -> State:
+        """Return the relays' state after this history, for the relay input ``x`` (V) after it.
 
-    def state_of(self, first: float, lo: float, hi: float) -> State:
+        ``left``: for a session history, the previous recording's end state to start from
+        instead of :attr:`left` (with a feedback effect its relays saw a shifted input,
+        :meth:`~preisach.diagnose.context.Context.session_left`).
+        """
+        return self.state_of(float(x[0]), float(np.min(x)), float(np.max(x)), left)
+
+    def state_of(self, first: float, lo: float, hi: float, left: State | None = None) -> State:
         """:meth:`state` for a relay input given by its first value, minimum and maximum (V)."""
         if self.kind == "anhysteretic" and self.anhysteretic is not None:
             return self.anhysteretic.apply([first])
         if self.kind == "session" and self.left is not None:
-            return self.left.apply([float(np.clip(first, *self.u_range))])
+            end = self.left if left is None else left
+            return end.apply([float(np.clip(first, *self.u_range))])
         pts = [lo + f * (hi - lo) for f in self.turns] + [first]
         if self.kind == "range":
             pts = [hi, lo, *pts]

@@ -164,6 +164,7 @@ class Problem:
             )
             return theta, None
         effs = [*self.fixed.effects, FittedEffect(self.cand, x)]
+        fb_eff = self._feedback(effs)
         # normal equations straight from the C++ regressor, without forming it; a drift is
         # profiled out of them as ctx.solve_theta does, from the rows' cross products with its
         # basis, fitted on every training sample
@@ -188,7 +189,7 @@ class Problem:
                 target = r.y - (ctx.output_side(i, P, outs, st) - P) if outs else r.y
             else:
                 ue, target = ue_open, r.y
-            s0 = ctx.state(i, self.fixed.base, ue)
+            s0 = ctx.state(i, self.fixed.base, ue, fb_eff)
             if not self.drift:
                 gram, b, *_ = _core.normal_equations(
                     ctx.levels, ue, target, s0, self._fold(i, coarse), 1, "clamp", ctx.interpolation
@@ -221,6 +222,12 @@ class Problem:
         )
         return theta, last_u
 
+    @staticmethod
+    def _feedback(effs: list[FittedEffect]) -> FittedEffect | None:
+        """Return the feedback effect the relays' input carries (the last one), or None."""
+        fb = [e for e in effs if e.cand.side == "feedback"]
+        return fb[-1] if fb else None
+
     def _fold(self, i: int, coarse: bool) -> NDArray[np.int32]:
         """Fold labels of recording ``i`` for the normal equations (0: a row; -1: state only)."""
         key = (i, coarse)
@@ -242,8 +249,10 @@ class Problem:
             table = self.ctx.table(Base(theta))
             ctx, last = self.ctx, last_u
 
+            fb_eff = self._feedback([*self.fixed.effects, FittedEffect(self.cand, x)])
+
             def sim(i: int) -> Array:
-                s0 = ctx.state(i, self.fixed.base, last[i])
+                s0 = ctx.state(i, self.fixed.base, last[i], fb_eff)
                 return cast(Array, _core.simulate(table, last[i], s0, "clamp")[0])
 
             Ps = dict(zip(last, (map if serial else _pool().map)(sim, last)))
@@ -358,15 +367,26 @@ class Problem:
                 per_rec.append([ctx.recs[i].state0] * gains.size)
                 continue
             # an unknown one follows the relays' input (its first value and range), computed
-            # as ``Context._fed_back`` does, a few hundred points at a time
+            # as ``Context._fed_back`` does, a few hundred points at a time; the state the
+            # previous recording left, with its relays fed back too (``Context.session_left``)
             sts: list[Any] = []
+            left: list[Any] = [None] * gains.size
+            if h.kind == "session":
+                p = ctx.recs[i - 1]
+                pp = np.clip(ctx.previous(p.y), *cand.linear_range)
+                left = [
+                    p.state0.apply(np.clip(p.u + a * (pp - z), lo, hi).tolist())
+                    for a, z in zip(gains, zeros)
+                ]
             step = max(1, int(4e6 // max(u.size, 1)))
             for k0 in range(0, gains.size, step):
                 a = gains[k0 : k0 + step, None]
                 x = np.clip(u[None, :] + (prev[None, :] - zeros[k0 : k0 + step, None]) * a, lo, hi)
                 sts += [
-                    h.state_of(float(f), float(mn), float(mx))
-                    for f, mn, mx in zip(x[:, 0], x.min(axis=1), x.max(axis=1))
+                    h.state_of(float(f), float(mn), float(mx), lf)
+                    for f, mn, mx, lf in zip(
+                        x[:, 0], x.min(axis=1), x.max(axis=1), left[k0 : k0 + step]
+                    )
                 ]
             per_rec.append(sts)
         states = [per_rec[j][k] for k in range(gains.size) for j in range(len(todo))]
