@@ -184,15 +184,22 @@ def test_non_congruence_named_on_a_saturating_interaction():
     assert rep.rmse_after < 0.5 * rep.rmse_before, rep.summary()
 
 
-def _prepared(feedback_case, candidate: str):
-    """The feedback case's context (weights refitted), its first fold and the candidate."""
+def _prepared(feedback_case, candidate: str, unknown: bool = False):
+    """The feedback case's context (weights refitted), its first fold and the candidate.
+
+    ``unknown``: the recordings' initial states unknown (a session: each may start from the
+    state the previous one left).
+    """
     from preisach.diagnose import candidates as cands
     from preisach.diagnose.context import Context
     from preisach.diagnose.data import prepare_recordings
     from preisach.diagnose.scoring import make_folds
 
     case, model = feedback_case
-    recs = prepare_recordings(model, case.recordings, identification=[case.identification])
+    states = ["unknown"] * len(case.recordings) if unknown else None
+    recs = prepare_recordings(
+        model, case.recordings, initial_states=states, identification=[case.identification]
+    )
     ctx = Context(model, recs, refit=True)
     cand = getattr(cands, candidate)()
     cand.prepare(ctx)
@@ -201,14 +208,17 @@ def _prepared(feedback_case, candidate: str):
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    "candidate, drift",
+    "candidate, drift, session",
     [
-        ("NonCongruenceCandidate", False),
-        ("SplineFeedbackCandidate", False),
-        ("NonCongruenceCandidate", True),
+        ("NonCongruenceCandidate", False, False),
+        ("SplineFeedbackCandidate", False, False),
+        ("NonCongruenceCandidate", True, False),
+        ("NonCongruenceCandidate", False, True),
     ],
 )
-def test_the_gain_scan_in_cpp_gives_the_point_by_point_numbers(feedback_case, candidate, drift):
+def test_the_gain_scan_in_cpp_gives_the_point_by_point_numbers(
+    feedback_case, candidate, drift, session
+):
     """The C++ scan of linear feedbacks is the per-point training error of the candidate's vectors.
 
     Both feedback candidates' start-value scans run in one C++ call
@@ -218,11 +228,13 @@ def test_the_gain_scan_in_cpp_gives_the_point_by_point_numbers(feedback_case, ca
     the weights are fitted on every training sample with the drift profiled out and the
     residuals taken at every third of them (a small ``max_fit_samples``), freed of their own
     drift fit, every fourth counted: the C++ scan must do all of it as the Python path does.
+    With ``session`` every recording after the first starts from the state the previous one
+    left, which each point's feedback changes (``Context.session_left``).
     """
-    from preisach.diagnose.context import Chain
+    from preisach.diagnose.context import Base, Chain
     from preisach.diagnose.problem import Problem
 
-    ctx, fold, cand = _prepared(feedback_case, candidate)
+    ctx, fold, cand = _prepared(feedback_case, candidate, unknown=session)
     if candidate == "SplineFeedbackCandidate":
         y = np.concatenate([r.y for r in ctx.recs])
         lo, hi = np.quantile(y, [0.2, 0.8])
@@ -230,6 +242,10 @@ def test_the_gain_scan_in_cpp_gives_the_point_by_point_numbers(feedback_case, ca
         cand.fixed = {"y_lo": cand.y_lo, "y_hi": cand.y_hi}
         cand.knots = SplineFeedback.greville(cand.y_lo, cand.y_hi, cand.N_COEF)
     base = ctx.refit_base([], ctx.given, fold.train, drift)
+    if session:
+        left = {i: r.session for i, r in enumerate(ctx.recs) if r.session is not None}
+        assert len(left) == len(ctx.recs) - 2  # all but the first and the identification
+        base = Base(base.theta, states={**base.states, **left})
     if drift:
         ctx.max_fit_samples = int(sum(int(m.sum()) for m in fold.train) / 2.5)
     prob = Problem(ctx, cand, Chain(base), fold.train, drift, profile=True)

@@ -372,12 +372,7 @@ class Problem:
             sts: list[Any] = []
             left: list[Any] = [None] * gains.size
             if h.kind == "session":
-                p = ctx.recs[i - 1]
-                pp = np.clip(ctx.previous(p.y), *cand.linear_range)
-                left = [
-                    p.state0.apply(np.clip(p.u + a * (pp - z), lo, hi).tolist())
-                    for a, z in zip(gains, zeros)
-                ]
+                left = self._scan_left(i, gains, zeros, cand.linear_range)
             step = max(1, int(4e6 // max(u.size, 1)))
             for k0 in range(0, gains.size, step):
                 a = gains[k0 : k0 + step, None]
@@ -419,6 +414,29 @@ class Problem:
             pen = cand.penalty(cand.linear(float(gains[k]), float(zeros[k])), n_rows)
             sse[k] += float(pen @ pen) if pen.size else 0.0
         return sse
+
+    def _scan_left(
+        self, i: int, gains: Array, zeros: Array, span: tuple[float, float]
+    ) -> list[Any]:
+        """Return the state recording ``i - 1`` left under each linear feedback ``a (y - y_c)``.
+
+        As :meth:`Context.session_left` builds it (the previous recording's input shifted by
+        the feedback of its measured output, ``span`` the output range the feedback is linear
+        over), for every scanned point at once: its relays run in C++ on both cores, a few
+        hundred points at a time.
+        """
+        ctx = self.ctx
+        p = ctx.recs[i - 1]
+        lo, hi = ctx.model.u_min, ctx.model.u_max
+        pp = np.clip(ctx.previous(p.y), *span)
+        table = ctx.table(self.fixed.base)  # any table: only the relays' final states are kept
+        out: list[Any] = []
+        step = max(1, int(4e6 // max(p.u.size, 1)))
+        for k0 in range(0, gains.size, step):
+            a = gains[k0 : k0 + step, None]
+            x = np.clip(p.u[None, :] + (pp[None, :] - zeros[k0 : k0 + step, None]) * a, lo, hi)
+            out += _core.simulate_batch(table, x, [p.state0] * len(x), "clamp")[1]
+        return out
 
     def _linear_filters(self, todo: list[int]) -> list[list[tuple[Array, Array, float]]] | None:
         """Return the fixed output blocks of each recording as linear filters ``(b, a, mix)``.
