@@ -301,7 +301,7 @@ def test_the_next_recording_starts_where_the_feedback_left_the_relays(model):
     by the feedback of the output there; the next recording starts from that state.  Its
     prediction by the true feedback starts at the measured output only if the state the
     previous recording left is built with the feedback too (:meth:`Context.session_left`):
-    from its bare input the first block was 41 mV off on blind seed 49's moving-model case.
+    from its bare input the output was 37 mV off at rest on blind seed 49's moving-model case.
     """
     from preisach.diagnose.candidates import NonCongruenceCandidate
     from preisach.diagnose.context import Base, Chain, Context, FittedEffect

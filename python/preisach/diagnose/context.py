@@ -266,8 +266,9 @@ class Context:
         saw that input shifted by the feedback of its output, which at the end of a run at
         rest is a standing offset.  Left out, the next recording starts with its relays moved
         by that offset from where the previous one left them: on blind seed 49's moving-model
-        case a 41 mV jump of the predicted output at rest, and 3.5 x the base's held-out error
-        over the first block of the two recordings concerned.  The previous recording's relays
+        case the relays' input moved by 41 mV, the predicted output sat 37 mV off at rest, and
+        the two recordings concerned were predicted at 3.4 x the base's held-out error.  The
+        previous recording's relays
         are taken to see its input shifted by the feedback of its measured output, as for an
         unknown initial state (:meth:`_relays_estimate`); its input blocks are left out (at
         rest at its end they pass the input).

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any, Callable, cast
 
 import numpy as np
@@ -373,14 +373,11 @@ class Problem:
             left: list[Any] = [None] * gains.size
             if h.kind == "session":
                 left = self._scan_left(i, gains, zeros, cand.linear_range)
-            step = max(1, int(4e6 // max(u.size, 1)))
-            for k0 in range(0, gains.size, step):
-                a = gains[k0 : k0 + step, None]
-                x = np.clip(u[None, :] + (prev[None, :] - zeros[k0 : k0 + step, None]) * a, lo, hi)
+            for k0, x in self._linear_rows(u, prev, gains, zeros):
                 sts += [
                     h.state_of(float(f), float(mn), float(mx), lf)
                     for f, mn, mx, lf in zip(
-                        x[:, 0], x.min(axis=1), x.max(axis=1), left[k0 : k0 + step]
+                        x[:, 0], x.min(axis=1), x.max(axis=1), left[k0 : k0 + len(x)]
                     )
                 ]
             per_rec.append(sts)
@@ -427,16 +424,25 @@ class Problem:
         """
         ctx = self.ctx
         p = ctx.recs[i - 1]
-        lo, hi = ctx.model.u_min, ctx.model.u_max
         pp = np.clip(ctx.previous(p.y), *span)
         table = ctx.table(self.fixed.base)  # any table: only the relays' final states are kept
         out: list[Any] = []
-        step = max(1, int(4e6 // max(p.u.size, 1)))
-        for k0 in range(0, gains.size, step):
-            a = gains[k0 : k0 + step, None]
-            x = np.clip(p.u[None, :] + (pp[None, :] - zeros[k0 : k0 + step, None]) * a, lo, hi)
+        for _, x in self._linear_rows(p.u, pp, gains, zeros):
             out += _core.simulate_batch(table, x, [p.state0] * len(x), "clamp")[1]
         return out
+
+    def _linear_rows(
+        self, u: Array, prev: Array, gains: Array, zeros: Array
+    ) -> Iterator[tuple[int, Array]]:
+        """Yield ``(k0, rows)``: the relays' input ``u + a (prev - y_c)`` per point, clamped.
+
+        As ``Context._fed_back`` computes it, a few hundred points at a time (rows ``k0`` on).
+        """
+        lo, hi = self.ctx.model.u_min, self.ctx.model.u_max
+        step = max(1, int(4e6 // max(u.size, 1)))
+        for k0 in range(0, gains.size, step):
+            a, z = gains[k0 : k0 + step, None], zeros[k0 : k0 + step, None]
+            yield k0, np.clip(u[None, :] + (prev[None, :] - z) * a, lo, hi)
 
     def _linear_filters(self, todo: list[int]) -> list[list[tuple[Array, Array, float]]] | None:
         """Return the fixed output blocks of each recording as linear filters ``(b, a, mix)``.
