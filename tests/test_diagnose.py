@@ -563,6 +563,31 @@ def test_a_mode_that_does_not_ring_is_not_a_resonance():
     assert DelayCandidate().implausible(np.array([0.003]), ctx) is None
 
 
+def test_a_general_block_that_shows_nothing_does_not_refuse_a_mode():
+    """A mode is refused when the general linear block shows a delay or a lag, not nothing.
+
+    The equation-error block can miss a lightly damped pole pair in noisy outputs (blind
+    seed 49's case 008, 32 Hz at damping ratio 0.0055, and seed 51's case 013, two modes at
+    31 and 88 Hz: the mode forms gained 50-64 % and were refused, "no linear dynamics").
+    """
+    from types import SimpleNamespace
+
+    from preisach.diagnose.candidates import ModeCandidate
+    from preisach.diagnose.linear_block import Classification
+
+    def cls(kind: str, reason: str) -> Classification:
+        nan = float("nan")
+        return Classification(kind, 0.0, nan, nan, nan, nan, reason)
+
+    ctx = SimpleNamespace(dt_min=1e-3, max_delay=0.05)
+    mode = ModeCandidate()
+    x = np.array([32.0, 0.01, 1.0])
+    mode._classes = [cls("none", "no linear dynamics")] * 2
+    assert mode.implausible(x, ctx) is None
+    mode._classes = [cls("none", "no linear dynamics"), cls("lag", "a first-order lag")]
+    assert "a first-order lag" in mode.implausible(x, ctx)
+
+
 def _session_recs():
     """Two recordings of one session: the second starts where the first left the relays.
 
