@@ -16,6 +16,7 @@ from preisach import PreisachModel, Recording, _core
 from preisach.diagnose.candidates import NonCongruenceCandidate
 from preisach.diagnose.congruency import (
     LOOP_ALPHA,
+    LOOP_JOINT_ALPHA,
     LOOP_MIN_SHAPE,
     LOOP_SCALE_SHARE,
     loop_shapes,
@@ -155,6 +156,38 @@ def test_a_height_change_the_shape_test_cannot_see_is_all_of_the_difference():
     assert null.height_share == 0.0 and not null.passes(), null
 
 
+def test_a_height_change_short_of_its_bar_is_named_with_the_output_curve():
+    """A height change at p = 0.012 alone; with an output curve at p = 0.02, jointly p = 0.002.
+
+    Two tests of one physics (loops whose height changes with the output level), each just
+    short of its own bar, are one clear finding by Fisher's method; an output curve at
+    p = 0.5 adds nothing (jointly 0.04), and a joint p does not name loops whose shape
+    differences the height does not make.  Seen blind seeds 42-52: five non-congruences
+    were left ``none`` with height p 0.0018-0.096 and curve p 0.0005-0.072 (docs/diagnosis.md,
+    section 5y).  Fails when the joint test is dropped, ignores its bar or the height's share.
+    """
+    from preisach.diagnose.congruency import LoopShape
+
+    s2, n, k, q = 1e-6, 1000, 20, 9
+    rss_own = (n - k) * s2
+    pr = LoopShape(
+        -1.0, 1.0, 0.0, 1.0, 0.0, 1.0, rss_own + 5 * s2, rss_own, q, n, k, 0.0,
+        np.arange(3, dtype=np.int64), np.zeros(3), 0.005, 0.25,
+    )  # fmt: skip
+    alone = pooled_loop_check([(0, pr)], 1e-3)  # z = 2.5
+    assert 0.01 < alone.height_p < 0.015 and alone.height_share == 1.0, alone
+    assert alone.joint_p() is None and not alone.passes(), alone
+    joint = replace(alone, curve_p=0.02)
+    assert 0.002 < joint.joint_p() < 0.003 < LOOP_JOINT_ALPHA, joint.joint_p()
+    assert joint.found_by() == ["joint"] and joint.as_dict()["joint_p"] == joint.joint_p(), joint
+    weak = replace(alone, curve_p=0.5)
+    assert LOOP_JOINT_ALPHA < weak.joint_p() < 0.05 and not weak.passes(), weak.joint_p()
+    shaped = pooled_loop_check([(0, replace(pr, rss_same=rss_own + 22 * s2))], 1e-3)
+    shaped.curve_p = 0.02  # the shapes differ by more than twice what the height makes
+    assert shaped.height_share < LOOP_SCALE_SHARE and shaped.p > LOOP_ALPHA, shaped
+    assert not shaped.passes(), shaped
+
+
 def _dip(u: np.ndarray) -> np.ndarray:
     """``u`` with a 0.5 V dip (below the reversal tolerance) inside its last rising leg."""
     k = int(np.flatnonzero(np.diff(u) > 0)[-1]) - 60
@@ -272,6 +305,7 @@ def test_a_cml_recording_names_what_the_refit_hides(stiffening):
     chk = rep.noise_test["classical"]
     assert chk is not None, rep.summary()
     assert chk["minor_loops"]["pairs"] == 1, chk["minor_loops"]
+    assert chk["minor_loops"]["curve_p"] == chk["output_curve"]["p"], chk
     if stiffening:
         assert chk["found"] == "minor_loops", chk
         assert rep.verdict == "non_congruence", rep.summary()
@@ -280,10 +314,28 @@ def test_a_cml_recording_names_what_the_refit_hides(stiffening):
         h = rep.effects[0].parameters["height_per_volt"]  # shorter loops higher up
         assert h["value"] + 3 * h["std"] < 0.0, h
         assert "in height by" in rep.effects[0].evidence, rep.effects[0].evidence
+        assert "shape" in chk["minor_loops"]["found_by"], chk["minor_loops"]
     else:
         assert chk["minor_loops"]["p"] > LOOP_ALPHA, chk["minor_loops"]
+        assert chk["minor_loops"]["joint_p"] > LOOP_JOINT_ALPHA, chk["minor_loops"]
         assert rep.verdict == "none", rep.summary()
         assert not any("CML experiment" in n for n in rep.notes), rep.notes
+
+
+def test_loops_named_by_their_height_alone_are_said_to_change_height():
+    """Loops 0.4 % shorter per unit output: the height test names them, the shape test not.
+
+    The statement then says the loop's height changed (a shape change of about nothing
+    "beyond a vertical shift" would read as no change at all).  Fails when the statement
+    leads with a shape test that did not pass.
+    """
+    rep = _diagnose(0.004)
+    lc = rep.noise_test["classical"]["minor_loops"]
+    assert rep.verdict == "non_congruence", rep.summary()
+    assert "height" in lc["found_by"] and "shape" not in lc["found_by"], lc
+    statement = rep.effects[0].statement
+    assert "changes its height by -0.0" in statement and "its shape" in statement, statement
+    assert "changes its shape" not in statement, statement
 
 
 def test_a_none_without_repeated_loops_says_which_experiment_would_test_congruency():

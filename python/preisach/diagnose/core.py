@@ -866,16 +866,26 @@ def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarra
     diag = list(ctx.diag)
     unit = ctx.output_unit
     moved = big["level_b"] - big["level_a"]
+    heights = f"{100 * lc['height_per_volt'] * moved:+.2g} %"
+    if "shape" in lc["found_by"]:
+        change = (
+            f"changes its shape by {amount_text(big['shape_rms'], unit, '.2g')} RMS beyond a "
+            f"vertical shift from t = {big['t_a']:.3g} s to {big['t_b']:.3g} s, its output "
+            f"level moved by {amount_text(moved, unit, '.2g')} (loops' heights: {heights} "
+            "over that move)"
+        )
+    else:  # the height test, alone or jointly with the output curve
+        change = (
+            f"changes its height by {heights} from t = {big['t_a']:.3g} s to "
+            f"{big['t_b']:.3g} s, its output level moved by {amount_text(moved, unit, '.2g')}, "
+            "its shape otherwise the same within the noise"
+        )
     return EffectReport(
         name="non_congruence",
         statement=(
             f"minor loops between the same inputs are not congruent: the loop between "
-            f"{big['low']:.3g} and {big['high']:.3g} V in '{big['recording']}' changes its shape "
-            f"by {amount_text(big['shape_rms'], unit, '.2g')} RMS beyond a vertical shift from "
-            f"t = {big['t_a']:.3g} s to {big['t_b']:.3g} s, its output level moved by "
-            f"{amount_text(moved, unit, '.2g')} (loops' heights: "
-            f"{100 * lc['height_per_volt'] * moved:+.2g} % over that move); no classical "
-            "(congruent) Preisach model does that - the actuator's loops change with its "
+            f"{big['low']:.3g} and {big['high']:.3g} V in '{big['recording']}' {change}; no "
+            "classical (congruent) Preisach model does that - the actuator's loops change with its "
             "strain (non-congruence), or the sensor reads through a nonlinear curve (sensor "
             "nonlinearity), which these recordings cannot tell apart; to separate them: "
             f"{ACTUATOR_OR_SENSOR}"

@@ -626,7 +626,10 @@ def resolution_check(
     between the same inputs that differ in shape beyond a vertical shift are what no
     classical model makes however its weights are refitted, named ``non_congruence`` (key
     ``found`` = ``minor_loops``, ``core._loop_congruency``) unless the output moves within
-    the input holds (creep and drift change a loop's shape too).
+    the input holds (creep and drift change a loop's shape too).  The loops' heights are
+    also tested jointly with the output curve (:meth:`~.congruency.MinorLoopCheck.joint_p`, Fisher's
+    method): two tests of one physics, each of which a weak non-congruence can leave just
+    short of its own bar.
 
     ``base_within``: the refitted base is already within the bound.  The two tests beyond
     the fine model still run (the diagnosis calls them whenever nothing was kept): a base
@@ -679,7 +682,7 @@ def resolution_check(
         # the fine one can be that grid's misfit of narrow loops, moving with the input
         finer = _confirm_drift(ctx, sigma, dc) if dc.passes(RESOLUTION_BEYOND_CLASSICAL) else []
         last_levels, last = finer[-1] if finer else (0, None)
-        lc = minor_loop_check(ctx, sigma)
+        lc = minor_loop_check(ctx, sigma, curve_p=cc.p)
         curve = cc.as_dict()
         drift = {
             "gain_noise_variances": dc.gain,
@@ -756,7 +759,8 @@ def resolution_check(
             statement += (
                 f"; {len(lc.pairs)} pair(s) of repeated minor loops agree in shape up to a "
                 f"vertical shift (F = {lc.F:.3g}, p = {lc.p:.2g}) and in height (p = "
-                f"{lc.height_p:.2g}), as a congruent model's do"
+                f"{lc.height_p:.2g}; with the output curve jointly p = {lc.joint_p():.2g}), "
+                "as a congruent model's do"
             )
     report = {
         **chk.as_dict(),
