@@ -73,6 +73,66 @@ def test_hold_motion_tells_an_after_effect_from_a_wander():
     assert "not following" in drift.statement() and "following the moves" in creep.statement()
 
 
+def test_an_after_effect_within_the_noise_follows_the_moves_and_noise_or_a_wander_does_not():
+    """A relaxation after each step 0.1 x the one above: the holds stay within the noise's
+    RMS (not ``moves``) but their motion follows the moves into them across the twelve
+    holds (one-sided p < HOLD_AFTER_EFFECT_P): an after-effect.  Noise alone, a wander that
+    does not know the moves, and a motion beyond the noise's RMS (left to the other rules)
+    are not.  Fails when the test loses its direction, its bar or its tie to the RMS bound.
+    """
+    from preisach.diagnose.holds import HOLD_AFTER_EFFECT_P
+
+    err, relax, noise, holds = _staircase(2)
+    weak = hold_motion(_score(err + 0.1 * relax + noise), holds, NOISE)
+    assert weak is not None and not weak.moves, weak
+    assert weak.follows_p < HOLD_AFTER_EFFECT_P and weak.after_effect, weak
+    assert weak.follows > 0.0 and weak.as_dict()["after_effect"], weak
+    against = hold_motion(_score(err - 0.1 * relax + noise), holds, NOISE)  # goes back
+    assert against is not None and not against.after_effect, against
+    still = hold_motion(_score(err + noise), holds, NOISE)
+    assert still is not None and not still.after_effect, still
+    wander = np.cumsum(np.random.default_rng(3).normal(0.0, 0.05 * NOISE, noise.size))
+    drift = hold_motion(_score(err + wander + noise), holds, NOISE)
+    assert drift is not None and not drift.moves and not drift.after_effect, drift
+    strong = hold_motion(_score(err + relax + noise), holds, NOISE)
+    assert strong is not None and strong.moves and not strong.after_effect, strong
+
+
+@pytest.mark.parametrize("size", [0.0, 3e-4])
+def test_creep_within_the_noise_in_every_hold_is_named_from_all_of_them(size):
+    """A log creep a tenth of the one below: no hold moves beyond the noise's RMS and no
+    creep form is kept, but over twenty holds the motion follows the moves into them (t about
+    10): ``creep``, with no block added.  Without it the same recordings (a sensor curve the
+    candidates cannot fit) are not called creep.  Fails when the after-effect is not tested
+    when nothing is kept, or is named on noise.
+    """
+    fine = PreisachModel.builtin("ss15-2hz", levels=61)
+    coarse = PreisachModel.builtin("ss15-2hz", levels=21)
+    rng = np.random.default_rng(4)
+    recs = []
+    for k in range(2):
+        levels = coarse.u_min + (coarse.u_max - coarse.u_min) * rng.uniform(0.05, 0.95, 10)
+        u = np.repeat(levels, int(1.5 / DT))
+        t = np.arange(u.size) * DT
+        p = fine.simulate(u, fine.negative_saturation()).output
+        dp = np.diff(p, prepend=p[0])
+        creep = size * np.convolve(dp, np.log10(1.0 + np.arange(u.size) * DT / 0.05))[: u.size]
+        sensor = 0.03 * np.sin(3 * p / np.ptp(p))  # a static curve: a level error per hold
+        y = p + sensor + creep + rng.normal(0.0, NOISE, u.size)
+        recs.append(Recording.from_arrays(t=t, u=u, y=y, experiment=f"steps{k}"))
+    rep = diagnose(coarse, recs, candidates=["creep", "sensor_drift"], progress=False)
+    holds = rep.noise_test["holds"]
+    assert holds is not None and not holds["moves"], holds
+    if size:
+        assert rep.verdict == "creep" and holds["after_effect"], rep.summary()
+        assert holds["follows_moves_t"] > 5.0, holds
+        eff = rep.effects[0]
+        assert eff.heldout_rmse_after == eff.heldout_rmse_before  # no block added
+        assert "follows_moves" in eff.parameters and "holds within" in eff.evidence
+    else:
+        assert rep.verdict != "creep" and not holds["after_effect"], rep.summary()
+
+
 def test_creep_hidden_under_level_errors_is_named_from_the_holds():
     """A sensor curve the candidates cannot fit leaves level errors at every step; a creep
     worth a few noise sigmas is then not significant over the pooled held-out blocks, but

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import stats
 
 from .drift import slope_t
 from .scoring import Score, sign_flip_p
@@ -51,6 +52,12 @@ HOLD_MIN_EXPLAINED = 0.2
 HOLD_EXCESS = 1.2
 #: t-statistic of the hold motion on the moves into the holds from which it follows them
 HOLD_FOLLOWS_T = 3.0
+#: one-sided p-value (t-distribution, one degree of freedom per hold piece less one) below
+#: which a motion within the noise's RMS that follows the moves into the holds is named an
+#: after-effect (:attr:`HoldMotion.after_effect`).  Seen blind seeds 42-53 (docs/diagnosis.md,
+#: section 5y): the 36 nulls' |t| were at most 1.9, the other kinds' (nothing kept, holds
+#: within the noise) at most 2.3; the creeps' 4.9-12.8.
+HOLD_AFTER_EFFECT_P = 0.001
 
 
 @dataclass(frozen=True)
@@ -205,11 +212,36 @@ class HoldMotion:
     seconds: float
     ratio: float  # within-hold RMS (each piece's mean removed) / noise
     follows_t: float  # t-statistic of each piece's motion on the move into its hold
+    follows: float = 0.0  # that motion per unit move into the hold (the slope)
 
     @property
     def moves(self) -> bool:
         """Whether the output moves within the holds beyond the noise."""
         return self.n_pieces >= HOLD_MIN_PIECES and self.ratio >= HOLD_EXCESS
+
+    @property
+    def follows_p(self) -> float:
+        """One-sided p of ``follows_t`` (t-distribution, ``n_pieces - 1`` degrees of freedom).
+
+        Exact enough under any rate-independent model: its output stands still while the
+        input holds, so each piece's motion is noise whatever the model's resolution.
+        """
+        return float(stats.t.sf(self.follows_t, max(self.n_pieces - 1, 1)))
+
+    @property
+    def after_effect(self) -> bool:
+        """Whether a motion within the noise's RMS goes on in the direction of the moves.
+
+        The holds do not move beyond :data:`HOLD_EXCESS` x the noise, but across at least
+        :data:`HOLD_MIN_PIECES` holds their motion follows the moves into them at
+        :data:`HOLD_AFTER_EFFECT_P`: an after-effect (creep) too small for any one hold's
+        RMS, systematic over all of them.
+        """
+        return (
+            self.n_pieces >= HOLD_MIN_PIECES
+            and not self.moves
+            and self.follows_p < HOLD_AFTER_EFFECT_P
+        )
 
     def statement(self) -> str:
         """One line: the motion in words, and that nothing predicted it when it moves."""
@@ -245,7 +277,10 @@ class HoldMotion:
             "seconds": self.seconds,
             "ratio": self.ratio,
             "follows_moves_t": self.follows_t,
+            "follows_moves_p": self.follows_p,
+            "follows_moves": self.follows,
             "moves": self.moves,
+            "after_effect": self.after_effect,
             "statement": self.statement(),
         }
 
@@ -275,7 +310,21 @@ def hold_motion(score: Score, holds: HoldPieces, sigma: float) -> HoldMotion | N
         float(holds.seconds[m].sum()),
         math.sqrt(float(sse[m].sum()) / float(cnt[m].sum())) / sigma,
         follows,
+        float(mv @ d) / float(mv @ mv) if float(mv @ mv) > 0 else 0.0,
     )
+
+
+def motion_curves(score: Score, holds: HoldPieces) -> list[Array]:
+    """Per recording: each hold piece's residual less its first third's mean (0 elsewhere).
+
+    What the output moved within the holds since each began (after the settle), the motion
+    :func:`hold_motion` measures.
+    """
+    out = [np.zeros(r.size) for r in score.residuals]
+    for i, a, b in holds.pieces:
+        res = score.residuals[i][a:b]
+        out[i][a:b] = res - float(np.mean(res[: max(res.size // 3, 1)]))
+    return out
 
 
 #: length (s) of the alternating stretches of a hold piece the wander test predicts from
