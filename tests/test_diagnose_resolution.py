@@ -376,3 +376,48 @@ def test_a_drift_is_confirmed_on_the_grid_that_resolves_no_more(tmp_path):
     assert first["ratio"] <= DRIFT_REFINE_RATIO * chk["ratio"], drift
     assert last["gain_noise_variances"] < RESOLUTION_BEYOND_CLASSICAL, drift
     assert chk["found"] is None and chk["consistent"], chk["statement"]
+
+
+@pytest.mark.parametrize(
+    ("fine", "finer", "levels"),
+    [(2.3, 1.8, [61, 81]), (2.3, 2.2, [61, 81]), (3.5, 1.8, [61])],
+)
+def test_a_fine_grid_just_above_the_bound_is_checked_on_a_finer_one(
+    monkeypatch, fine, finer, levels
+):
+    """The fine (61-level) and finer (81-level) models' ratios set to ``fine`` and ``finer``
+    x the noise (bound 2 x).  Just above the bound the finer grid is tried, and when its
+    model is within the bound it decides: the residual is resolution (a density narrower
+    than the fine grid), the tests beyond it run on that grid and the report says which
+    grid left what.  Far above, no finer grid is tried.  Blind seed-53 null 007 (a diagonal
+    ridge): 2.36 x on 61 levels, 1.79 x on 81.  A finer grid is not always better - on this
+    steady device 81 levels leave 2.5 x where 61 leave 1.1 x - so it only ever decides for
+    resolution.  Fails when the finer grid is not tried, is tried beyond its span, or its
+    ratio is not the one that decides.
+    """
+    from dataclasses import replace
+
+    from preisach.diagnose import selection
+    from preisach.diagnose.scoring import CHECK_LEVELS, classical_check
+
+    assert (CHECK_LEVELS, selection.RESOLUTION_CONFIRM_LEVELS) == (61, 81)
+    seen = []
+
+    def check(ctx, sigma, **kw):  # the grids' ratios set as the case says
+        res = classical_check(ctx, sigma, **kw)
+        seen.append(res.levels)
+        return replace(res, ratio=fine if res.levels == CHECK_LEVELS else finer)
+
+    monkeypatch.setattr(selection, "classical_check", check)
+    ctx = _context(0.0)
+    chk, _ = resolution_check(ctx, NOISE, noise_ratio=2.0)
+    assert seen == levels, seen
+    within = finer <= 2.0 and len(levels) == 2
+    assert chk["consistent"] is within, chk["statement"]
+    if within:
+        assert chk["levels"] == 81 and chk["ratio"] == finer, chk
+        assert chk["coarser"] == {"levels": 61, "ratio": fine}, chk
+        assert "where 61 levels left 2.3 x" in chk["statement"], chk["statement"]
+    else:
+        assert chk["levels"] == 61 and chk["coarser"] is None, chk
+    assert not any(k[0] == 81 for k in ctx.fine_systems)  # released

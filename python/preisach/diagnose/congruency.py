@@ -62,7 +62,7 @@ from scipy import interpolate, stats
 from ..verify import comparable_loops, minor_loops
 from .context import Chain, Context
 from .locate import amount_text
-from .scoring import BeyondClassical, beyond_classical
+from .scoring import CHECK_LEVELS, BeyondClassical, beyond_classical
 
 __all__ = [
     "LOOP_ALPHA",
@@ -147,14 +147,17 @@ def output_curve_check(
     powers: Sequence[int] = (2, 3),
     seed: int = 0,
     identification: bool = True,
+    levels: int = CHECK_LEVELS,
 ) -> OutputCurveCheck:
     """Measure what a static curve of the output adds to the fine classical model.
 
     See the module docstring: :func:`~preisach.diagnose.scoring.beyond_classical` with the
-    columns :func:`output_level` (``powers``, ``identification``).  ``sigma`` is the noise (V).
+    columns :func:`output_level` (``powers``, ``identification``) on a ``levels``-level grid.
+    ``sigma`` is the noise (V).
     """
     pw = tuple(int(k) for k in powers)
-    res = beyond_classical(ctx, sigma, output_level(ctx, pw, identification), seed=seed)
+    cols = output_level(ctx, pw, identification)
+    res = beyond_classical(ctx, sigma, cols, seed=seed, levels=levels)
     return OutputCurveCheck(**vars(res), powers=pw)
 
 
