@@ -98,14 +98,10 @@ def test_an_after_effect_within_the_noise_follows_the_moves_and_noise_or_a_wande
     assert strong is not None and strong.moves and not strong.after_effect, strong
 
 
-@pytest.mark.parametrize("size", [0.0, 3e-4])
-def test_creep_within_the_noise_in_every_hold_is_named_from_all_of_them(size):
-    """A log creep a tenth of the one below: no hold moves beyond the noise's RMS and no
-    creep form is kept, but over twenty holds the motion follows the moves into them (t about
-    10): ``creep``, with no block added.  Without it the same recordings (a sensor curve the
-    candidates cannot fit) are not called creep.  Fails when the after-effect is not tested
-    when nothing is kept, or is named on noise.
-    """
+def _creep_under_a_sensor_curve(size: float):
+    """Diagnose two staircases of a fine SS15 device read through a static sensor curve (a
+    level error per hold the candidates cannot fit), with a log creep of ``size`` per decade
+    of time from 50 ms on, superposed over the moves; the base is the 21-level surface."""
     fine = PreisachModel.builtin("ss15-2hz", levels=61)
     coarse = PreisachModel.builtin("ss15-2hz", levels=21)
     rng = np.random.default_rng(4)
@@ -120,7 +116,18 @@ def test_creep_within_the_noise_in_every_hold_is_named_from_all_of_them(size):
         sensor = 0.03 * np.sin(3 * p / np.ptp(p))  # a static curve: a level error per hold
         y = p + sensor + creep + rng.normal(0.0, NOISE, u.size)
         recs.append(Recording.from_arrays(t=t, u=u, y=y, experiment=f"steps{k}"))
-    rep = diagnose(coarse, recs, candidates=["creep", "sensor_drift"], progress=False)
+    return diagnose(coarse, recs, candidates=["creep", "sensor_drift"], progress=False)
+
+
+@pytest.mark.parametrize("size", [0.0, 3e-4])
+def test_creep_within_the_noise_in_every_hold_is_named_from_all_of_them(size):
+    """A log creep a tenth of the one below: no hold moves beyond the noise's RMS and no
+    creep form is kept, but over twenty holds the motion follows the moves into them (t about
+    10): ``creep``, with no block added.  Without it the same recordings (a sensor curve the
+    candidates cannot fit) are not called creep.  Fails when the after-effect is not tested
+    when nothing is kept, or is named on noise.
+    """
+    rep = _creep_under_a_sensor_curve(size)
     holds = rep.noise_test["holds"]
     assert holds is not None and not holds["moves"], holds
     if size:
@@ -137,21 +144,7 @@ def test_creep_hidden_under_level_errors_is_named_from_the_holds():
     """A sensor curve the candidates cannot fit leaves level errors at every step; a creep
     worth a few noise sigmas is then not significant over the pooled held-out blocks, but
     the holds show it and the verdict names it."""
-    fine = PreisachModel.builtin("ss15-2hz", levels=61)
-    coarse = PreisachModel.builtin("ss15-2hz", levels=21)
-    rng = np.random.default_rng(4)
-    recs = []
-    for k in range(2):
-        levels = coarse.u_min + (coarse.u_max - coarse.u_min) * rng.uniform(0.05, 0.95, 10)
-        u = np.repeat(levels, int(1.5 / DT))
-        t = np.arange(u.size) * DT
-        p = fine.simulate(u, fine.negative_saturation()).output
-        dp = np.diff(p, prepend=p[0])
-        creep = 0.003 * np.convolve(dp, np.log10(1.0 + np.arange(u.size) * DT / 0.05))[: u.size]
-        sensor = 0.03 * np.sin(3 * p / np.ptp(p))  # a static curve: a level error per hold
-        y = p + sensor + creep + rng.normal(0.0, NOISE, u.size)
-        recs.append(Recording.from_arrays(t=t, u=u, y=y, experiment=f"steps{k}"))
-    rep = diagnose(coarse, recs, candidates=["creep", "sensor_drift"], progress=False)
+    rep = _creep_under_a_sensor_curve(0.003)
     assert rep.verdict == "creep", rep.summary()
     holds = rep.effects[0].holds
     assert holds is not None and holds["qualified"] and holds["p_value"] < 0.01, holds

@@ -132,6 +132,20 @@ def test_a_drift_in_time_changes_the_shape_not_the_height(seed):
     assert lc.height_p > 0.01 and not lc.height_share >= 0.1, lc
 
 
+def _pair(scale: float):
+    """A pair of loops whose shapes differ by 5 noise variances (1e-6 V^2) over 9 parameters
+    (less than the noise alone makes), loop B ``scale`` higher per volt of output level, at
+    a height standard deviation of 0.002."""
+    from preisach.diagnose.congruency import LoopShape
+
+    s2, n, k, q = 1e-6, 1000, 20, 9
+    rss_own = (n - k) * s2
+    return LoopShape(
+        -1.0, 1.0, 0.0, 1.0, 0.0, 1.0, rss_own + 5 * s2, rss_own, q, n, k, 0.0,
+        np.arange(3, dtype=np.int64), np.zeros(3), scale, 0.25,
+    )  # fmt: skip
+
+
 def test_a_height_change_the_shape_test_cannot_see_is_all_of_the_difference():
     """A pair whose shapes differ by less than the noise's expectation, heights clearly.
 
@@ -140,14 +154,7 @@ def test_a_height_change_the_shape_test_cannot_see_is_all_of_the_difference():
     of the difference (share 1), not an undefined share that keeps it from being named.
     Fails when the share is divided by a difference at or below zero.
     """
-    from preisach.diagnose.congruency import LoopShape
-
-    s2, n, k, q = 1e-6, 1000, 20, 9
-    rss_own = (n - k) * s2
-    pr = LoopShape(
-        -1.0, 1.0, 0.0, 1.0, 0.0, 1.0, rss_own + 5 * s2, rss_own, q, n, k, 0.0,
-        np.arange(3, dtype=np.int64), np.zeros(3), 0.01, 0.25,
-    )  # fmt: skip
+    pr = _pair(0.01)
     lc = pooled_loop_check([(0, pr)], 1e-3)
     assert abs(lc.height_per_volt - 0.01) < 1e-12 and abs(lc.height_sd - 0.002) < 1e-9, lc
     assert lc.height_p < 1e-5 and lc.height_share == 1.0, lc
@@ -166,14 +173,7 @@ def test_a_height_change_short_of_its_bar_is_named_with_the_output_curve():
     were left ``none`` with height p 0.0018-0.096 and curve p 0.0005-0.072 (docs/diagnosis.md,
     section 5y).  Fails when the joint test is dropped, ignores its bar or the height's share.
     """
-    from preisach.diagnose.congruency import LoopShape
-
-    s2, n, k, q = 1e-6, 1000, 20, 9
-    rss_own = (n - k) * s2
-    pr = LoopShape(
-        -1.0, 1.0, 0.0, 1.0, 0.0, 1.0, rss_own + 5 * s2, rss_own, q, n, k, 0.0,
-        np.arange(3, dtype=np.int64), np.zeros(3), 0.005, 0.25,
-    )  # fmt: skip
+    pr = _pair(0.005)
     alone = pooled_loop_check([(0, pr)], 1e-3)  # z = 2.5
     assert 0.01 < alone.height_p < 0.015 and alone.height_share == 1.0, alone
     assert alone.joint_p() is None and not alone.passes(), alone
@@ -182,7 +182,7 @@ def test_a_height_change_short_of_its_bar_is_named_with_the_output_curve():
     assert joint.found_by() == ["joint"] and joint.as_dict()["joint_p"] == joint.joint_p(), joint
     weak = replace(alone, curve_p=0.5)
     assert LOOP_JOINT_ALPHA < weak.joint_p() < 0.05 and not weak.passes(), weak.joint_p()
-    shaped = pooled_loop_check([(0, replace(pr, rss_same=rss_own + 22 * s2))], 1e-3)
+    shaped = pooled_loop_check([(0, replace(pr, rss_same=pr.rss_own + 22e-6))], 1e-3)
     shaped.curve_p = 0.02  # the shapes differ by more than twice what the height makes
     assert shaped.height_share < LOOP_SCALE_SHARE and shaped.p > LOOP_ALPHA, shaped
     assert not shaped.passes(), shaped
