@@ -87,8 +87,8 @@ LOOP_ALPHA = 0.001
 #: classical model (Fisher's method, :meth:`MinorLoopCheck.joint_p`): two tests of one
 #: physics, loops whose height changes with the output level.  Measured on seen blind seeds
 #: 42-52 (docs/diagnosis.md, section 5y): the 33 nulls' joint p were all above 0.2; five of
-#: the 15 non-congruences whose fine classical model was within the noise bound and no single
-#: test passed had joint p of 0.0001-0.008.
+#: the 14 non-congruences left ``none`` (the fine classical model within the noise bound, no
+#: single test passed) had joint p of 0.0001-0.008.
 LOOP_JOINT_ALPHA = 0.01
 #: Smallest RMS shape difference (in noise standard deviations) it names.
 LOOP_MIN_SHAPE = 0.3

@@ -580,10 +580,9 @@ def _confirm_drift(
 
     In turn on :data:`DRIFT_CONFIRM_LEVELS` finer than ``levels`` (the fine grid): stops at
     the first grid where the drift no longer passes the bar, or where the fine model's
-    held-out ratio is above
-    :data:`DRIFT_REFINE_RATIO` times the coarser grid's (that grid resolves no more of the
-    density: the drift found on it stands).  ``fine``: the drift on the fine grid.  Returns
-    ``(levels, outcome)`` per grid visited; the last decides.
+    held-out ratio is above :data:`DRIFT_REFINE_RATIO` times the coarser grid's (that grid
+    resolves no more of the density: the drift found on it stands).  ``fine``: the drift on
+    the fine grid.  Returns ``(levels, outcome)`` per grid visited; the last decides.
     """
     out: list[tuple[int, BeyondClassical]] = []
     ratio = fine.ratio_classical
@@ -641,9 +640,9 @@ def resolution_check(
     classical model makes however its weights are refitted, named ``non_congruence`` (key
     ``found`` = ``minor_loops``, ``core._loop_congruency``) unless the output moves within
     the input holds (creep and drift change a loop's shape too).  The loops' heights are
-    also tested jointly with the output curve (:meth:`~.congruency.MinorLoopCheck.joint_p`, Fisher's
-    method): two tests of one physics, each of which a weak non-congruence can leave just
-    short of its own bar.
+    also tested jointly with the output curve (Fisher's method,
+    :meth:`~.congruency.MinorLoopCheck.joint_p`): two tests of one physics, each of which a
+    weak non-congruence can leave just short of its own bar.
 
     ``base_within``: the refitted base is already within the bound.  The two tests beyond
     the fine model still run (the diagnosis calls them whenever nothing was kept): a base
