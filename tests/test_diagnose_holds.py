@@ -155,48 +155,57 @@ def test_a_mode_named_from_the_holds_must_ring_by_itself():
     """The general block's veto is lifted by a ring in the holds only for a fitted mode that
     rings: damping below 0.3 and two periods in a typical hold piece (a 1 Hz, zeta 1 "mode"
     that lowers the within-hold residual is a relaxation)."""
+    from types import SimpleNamespace
+
     from preisach.diagnose.candidates import ModeCandidate
     from preisach.diagnose.context import Base, Chain, FittedEffect
     from preisach.diagnose.selection import _rings
 
     cand = ModeCandidate()
     holds = HoldPieces([(0, 0, 100)] * 4, np.full(4, 1.0), np.zeros(4))
+    ctx: Any = SimpleNamespace(noise_sigma=2e-3, y_span=10.0, output_unit="V")
 
-    def chains(*fits: tuple[float, float]) -> list[Chain]:
-        return [Chain(Base(), [FittedEffect(cand, np.array([f, z, 0.1]))]) for f, z in fits]
+    def chains(*fits: tuple[float, float], share: float = 0.1) -> list[Chain]:
+        return [Chain(Base(), [FittedEffect(cand, np.array([f, z, share]))]) for f, z in fits]
 
-    assert _rings(cand, chains((40.0, 0.02), (41.0, 0.03)), holds)
-    assert not _rings(cand, chains((40.0, 0.02), (1.15, 1.0)), holds)  # one fold overdamped
-    assert not _rings(cand, chains((1.5, 0.05), (1.5, 0.05)), holds)  # < 2 periods per piece
-    assert not _rings(cand, chains((40.0, 0.02)), HoldPieces([], np.zeros(0), np.zeros(0)))
+    assert _rings(ctx, cand, chains((40.0, 0.02), (41.0, 0.03)), holds)
+    assert not _rings(ctx, cand, chains((40.0, 0.02), (1.15, 1.0)), holds)  # one overdamped
+    assert not _rings(ctx, cand, chains((1.5, 0.05), (1.5, 0.05)), holds)  # < 2 periods/piece
+    assert not _rings(ctx, cand, chains((40.0, 0.02)), HoldPieces([], np.zeros(0), np.zeros(0)))
+    # a full-span step would ring by 5 mV, 2.5 x the noise: not seen ringing
+    assert not _rings(ctx, cand, chains((40.0, 0.02), (41.0, 0.03), share=5e-4), holds)
 
 
 def test_a_ring_in_few_blocks_qualifies_only_as_the_same_mode_in_both_folds():
     """A ring after a few large steps leaves the block sign-flip test no power; the folds,
     fitted on disjoint halves, must then find the same ringing mode, and at least two held-out
     blocks must each be predicted far beyond the noise."""
+    from types import SimpleNamespace
+
     from preisach.diagnose.candidates import ModeCandidate
     from preisach.diagnose.context import Base, Chain, FittedEffect
     from preisach.diagnose.selection import _repeated_ring
 
     cand = ModeCandidate()
     holds = HoldPieces([(0, 0, 100)] * 4, np.full(4, 1.0), np.zeros(4))
+    sigma, n = 2e-3, np.full(6, 500.0)
+    ctx: Any = SimpleNamespace(noise_sigma=sigma, y_span=10.0, output_unit="V")
 
     def chains(*fits: tuple[float, float]) -> list[Chain]:
         return [Chain(Base(), [FittedEffect(cand, np.array([f, z, 0.1]))]) for f, z in fits]
 
-    sigma, n = 2e-3, np.full(6, 500.0)
     big = 50 * sigma**2 * 500  # a block predicted 50 noise variances per sample better
     d = np.array([big, 0.8 * big, -1e-3, 2e-4, -5e-4, 1e-4])
-    assert _repeated_ring(cand, chains((73.7, 0.0074), (73.69, 0.0071)), holds, d, n, sigma)
+    assert _repeated_ring(ctx, cand, chains((73.7, 0.0074), (73.69, 0.0071)), holds, d, n, sigma)
     # different modes in the two folds, or one that does not ring, are no repeated ring
-    assert not _repeated_ring(cand, chains((73.7, 0.007), (81.0, 0.007)), holds, d, n, sigma)
-    assert not _repeated_ring(cand, chains((73.7, 0.007), (73.7, 0.02)), holds, d, n, sigma)
-    assert not _repeated_ring(cand, chains((73.7, 0.5), (73.7, 0.5)), holds, d, n, sigma)
+    assert not _repeated_ring(ctx, cand, chains((73.7, 0.007), (81.0, 0.007)), holds, d, n, sigma)
+    assert not _repeated_ring(ctx, cand, chains((73.7, 0.007), (73.7, 0.02)), holds, d, n, sigma)
+    assert not _repeated_ring(ctx, cand, chains((73.7, 0.5), (73.7, 0.5)), holds, d, n, sigma)
     # one event alone is no repetition
     one = d.copy()
     one[1] = 0.0
-    assert not _repeated_ring(cand, chains((73.7, 0.0074), (73.69, 0.0071)), holds, one, n, sigma)
+    same = chains((73.7, 0.0074), (73.69, 0.0071))
+    assert not _repeated_ring(ctx, cand, same, holds, one, n, sigma)
 
 
 def test_the_final_fit_is_checked_against_its_name_too():
@@ -209,7 +218,7 @@ def test_the_final_fit_is_checked_against_its_name_too():
     from preisach.diagnose.selection import final_implausible
 
     cand = ModeCandidate()
-    ctx: Any = SimpleNamespace(dt_min=1e-3)
+    ctx: Any = SimpleNamespace(dt_min=1e-3, noise_sigma=2e-3, y_span=10.0, output_unit="V")
     holds = HoldPieces([(0, 0, 100)] * 4, np.full(4, 1.0), np.zeros(4))
     plain: Any = SimpleNamespace(veto_lifted=set())
     lifted: Any = SimpleNamespace(veto_lifted={cand.key})

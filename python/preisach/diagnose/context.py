@@ -162,6 +162,9 @@ class Context:
         self.y_span = abs(self.y_hi - self.y_lo)
         self.y_centre = 0.5 * (self.y_lo + self.y_hi)
         self.y_half_span = max(0.5 * self.y_span, 1e-12)
+        #: the noise's RMS (output unit), set by :func:`~.core.diagnose` once estimated; 0
+        #: while unknown (the candidates' checks against the noise are then skipped)
+        self.noise_sigma = 0.0
         self.longest_duration = max(float(recs[i].t[-1] - recs[i].t[0]) for i in self.diag)
         self.max_delay = float(max_delay) if max_delay is not None else max(0.05, 10 * self.dt_min)
         #: knot spacing (s) of each recording's drift curve until it is chosen by held-out

@@ -377,6 +377,7 @@ def diagnose(
     )
     # 2. the baseline: the given model's predictions and the noise level
     base = _baseline(ctx, sigma)
+    ctx.noise_sigma = base.sigma
     if progress:
         progress(
             f"{len(ctx.diag)} recordings ({len(recs) - len(ctx.diag)} for identification), "

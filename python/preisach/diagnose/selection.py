@@ -227,12 +227,13 @@ def _fold_fits(cand: Candidate, chains: list[Chain]) -> list[np.ndarray]:
     return [ch.effects[-1].x for ch in chains if ch.effects and ch.effects[-1].cand is cand]
 
 
-def _rings(cand: Candidate, chains: list[Chain], pieces: HoldPieces) -> bool:
+def _rings(ctx: Context, cand: Candidate, chains: list[Chain], pieces: HoldPieces) -> bool:
     """Whether every fold's fitted mode rings by its own parameters within the holds.
 
-    A damping ratio below the mode's ``MAX_ZETA`` (a visible overshoot) and at least two
-    periods in a typical hold piece: a heavily damped or slow "mode" that lowers the
-    within-hold residual is a relaxation (creep), not a ring.
+    A damping ratio below the mode's ``MAX_ZETA`` (a visible overshoot), at least two
+    periods in a typical hold piece and a ring above the noise
+    (:meth:`~.candidates.ModeCandidate.unseen_ring`): a heavily damped or slow "mode" that
+    lowers the within-hold residual is a relaxation (creep), not a ring.
     """
     if not len(pieces):
         return False
@@ -243,6 +244,9 @@ def _rings(cand: Candidate, chains: list[Chain], pieces: HoldPieces) -> bool:
         par = cand.params(x)
         f, z = par.get("f_n"), par.get("zeta")
         if f is None or z is None or float(z) >= max_zeta or float(f) < min_f:
+            return False
+        unseen = getattr(cand, "unseen_ring", None)
+        if unseen is not None and unseen(x, ctx):
             return False
     return bool(fits)
 
@@ -255,6 +259,7 @@ RING_EVENT = 10.0
 
 
 def _repeated_ring(
+    ctx: Context,
     cand: Candidate,
     chains: list[Chain],
     pieces: HoldPieces,
@@ -274,7 +279,7 @@ def _repeated_ring(
     independent fits land within 3 % by chance with odds of about 1 in 90 on the 2 Hz to
     Nyquist range, where the candidate scans its starting frequencies.)
     """
-    if sigma <= 0 or not _rings(cand, chains, pieces):
+    if sigma <= 0 or not _rings(ctx, cand, chains, pieces):
         return None
     fits = [cand.params(x) for x in _fold_fits(cand, chains)]
     if len(fits) < 2:
@@ -311,7 +316,7 @@ def final_implausible(
         return None
     bad = last.cand.implausible(last.x, ctx)  # a family's fit is a copy of the candidate
     if bad and key in step.veto_lifted:
-        return None if _rings(cand, [chain], pieces) else "its fitted mode does not ring"
+        return None if _rings(ctx, cand, [chain], pieces) else "its fitted mode does not ring"
     return bad
 
 
@@ -925,7 +930,7 @@ def run_selection(
                 and expl[name] >= noise_factor
             ):
                 rep = _repeated_ring(
-                    remaining[name], new_chains[name], pieces, d, sc.n_blocks, sigma
+                    ctx, remaining[name], new_chains[name], pieces, d, sc.n_blocks, sigma
                 )
                 if rep:
                     reasons = []
@@ -937,7 +942,7 @@ def run_selection(
                     bad
                     and ring is not None
                     and ring.qualifies(alpha)
-                    and _rings(remaining[name], new_chains[name], pieces)
+                    and _rings(ctx, remaining[name], new_chains[name], pieces)
                 ):
                     # a ring the general block (tens of ms of taps) missed goes on in the
                     # holds, where no delay or lag acts: the mode's name stands
