@@ -1123,7 +1123,7 @@ def run_selection(
         for k in [k for k, c in remaining.items() if c.name == name]:
             del remaining[k]
         # candidates that could not lower the held-out error by even 2 % are not retried,
-        # but a drift is: beside a large unnamed effect its curve can only do worse
+        # but a drift is: beside a large unnamed effect its curve can do worse than none
         for k in [
             k
             for k in remaining
