@@ -138,6 +138,10 @@ def client():  # type: ignore[no-untyped-def]
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
     )
     c = distributed.Client(cluster)
+    # both workers running before the first scatter: a broadcast reaches only the running
+    # workers, and the lost-worker test must not kill the one that holds the shared data
+    # (a fresh-clone CI run failed so: "lost scattered data, which can't be recovered")
+    c.wait_for_workers(2, timeout=60)
     yield c
     c.close()
     cluster.close()
