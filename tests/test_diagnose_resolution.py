@@ -23,6 +23,7 @@ from preisach.diagnose.holds import HoldMotion
 from preisach.diagnose.scoring import fine_system, make_folds, unresolved_start, unvisited_bound
 from preisach.diagnose.selection import (
     DRIFT_CONFIRM_LEVELS,
+    DRIFT_KEEP_SHARE,
     DRIFT_REFINE_RATIO,
     RESOLUTION_BEYOND_CLASSICAL,
     _creep_within_classical,
@@ -349,7 +350,7 @@ def test_a_drift_must_also_pass_on_the_finer_grid(tmp_path):
     # ... the first finer grid leaves nothing for it
     (finer,) = drift["finer"]
     assert finer["levels"] == DRIFT_CONFIRM_LEVELS[0]
-    assert finer["gain_noise_variances"] < RESOLUTION_BEYOND_CLASSICAL, finer
+    assert finer["gain_noise_variances"] < 0.1 * drift["gain_noise_variances"], finer
     assert chk["found"] is None and chk["consistent"], chk["statement"]
     assert curves is None
     assert "not a change in time" in chk["statement"]
@@ -376,6 +377,29 @@ def test_a_drift_is_confirmed_on_the_grid_that_resolves_no_more(tmp_path):
     assert first["ratio"] <= DRIFT_REFINE_RATIO * chk["ratio"], drift
     assert last["gain_noise_variances"] < RESOLUTION_BEYOND_CLASSICAL, drift
     assert chk["found"] is None and chk["consistent"], chk["statement"]
+
+
+@pytest.mark.slow
+def test_a_drift_that_keeps_its_gain_on_finer_grids_is_found(tmp_path):
+    """A random-walk drift smaller on finer grids, but not gone, is found beyond the model.
+
+    Blind seed 59's case 010: a sensor drift (a random walk, 3.1 x the noise).  Beyond the
+    fine classical model it adds 0.014 noise variances (p 0.0005) on 61 levels and 0.009 on
+    81 and 101 (p <= 0.0015): under the absolute bar (0.01) it was refused as a grid's misfit
+    and the verdict was ``none``.  A misfit shrinks as the grid refines (the nulls kept
+    0-9 %); this drift keeps about two thirds.  Fails when the finer grids' bar is absolute.
+    """
+    ctx, forms = _generated_case(tmp_path, 59, 10)
+    assert forms == ["random_walk"]
+    chk, curves = resolution_check(ctx, _noise(ctx), noise_ratio=2.0)
+    drift = chk["drift"]
+    assert drift["gain_noise_variances"] >= RESOLUTION_BEYOND_CLASSICAL, drift
+    last = drift["finer"][-1]
+    assert last["gain_noise_variances"] < RESOLUTION_BEYOND_CLASSICAL, drift
+    assert last["gain_noise_variances"] >= DRIFT_KEEP_SHARE * drift["gain_noise_variances"], drift
+    assert last["p"] < 0.01, drift
+    assert chk["found"] == "drift" and not chk["consistent"], chk["statement"]
+    assert curves is not None
 
 
 @pytest.mark.parametrize(

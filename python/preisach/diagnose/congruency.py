@@ -433,6 +433,20 @@ class MinorLoopCheck:
         """Return the pair whose shapes differ most (recording index, pair)."""
         return max(self.pairs, key=lambda ip: ip[1].shape_rms)
 
+    def largest_dict(self, ctx: Context) -> dict[str, Any]:
+        """JSON-ready fields of :meth:`largest`: its recording, inputs (V), times (s), levels."""
+        k, pr = self.largest()
+        return {
+            "recording": ctx.recs[k].name,
+            "low": pr.low,
+            "high": pr.high,
+            "t_a": pr.t_a,
+            "t_b": pr.t_b,
+            "level_a": pr.level_a,
+            "level_b": pr.level_b,
+            "shape_rms": pr.shape_rms,
+        }
+
     def curves(self, ctx: Context) -> list[Array]:
         """Per recording: the shape differences (V) on loop B's samples, zeros elsewhere."""
         out = [np.zeros(r.n) for r in ctx.recs]

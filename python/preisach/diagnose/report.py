@@ -122,8 +122,11 @@ class DiagnosisReport:
         the resolution check of :func:`~preisach.diagnose.selection.resolution_check` -
         ``ratio``, ``heldout_rmse``, ``levels``, ``smoothing``, ``stretch_s``, ``seconds``,
         ``consistent``, ``statement``, ``output_curve`` and ``drift``: what a static output
-        curve and a drift in time add to the fine model, in noise variances, with ``p``)
-        and ``consistent`` (``ratio <= threshold``, or the classical check's verdict).
+        curve and a drift in time add to the fine model, in noise variances, with ``p``),
+        ``loops_beside`` (None, or when effects other than ``non_congruence`` were kept: the
+        repeated minor loops compared against their prediction, as ``minor_loops`` with
+        ``moves``, whether the holds moved and vetoed it) and ``consistent`` (``ratio <=
+        threshold``, or the classical check's verdict).
     unexplained : dict or None
         When the final held-out residual is above ``threshold`` times the noise: ``ratio``,
         ``statement`` (the localisation in words), ``where`` (recordings, input range,
