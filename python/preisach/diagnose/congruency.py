@@ -501,7 +501,11 @@ def loop_difference_text(lc: dict[str, Any], unit: str = "V", bars: bool = False
 
 
 def minor_loop_check(
-    ctx: Context, sigma: float, chain: Chain | None = None, curve_p: float | None = None
+    ctx: Context,
+    sigma: float,
+    chain: Chain | None = None,
+    curve_p: float | None = None,
+    preds: Sequence[Array] | None = None,
 ) -> MinorLoopCheck:
     """Test the diagnosis recordings' comparable minor loops for congruency.
 
@@ -517,13 +521,15 @@ def minor_loop_check(
     loops that agree differ.  The F-test's denominator is the residual about each loop's
     own spline, so it does not lean on ``sigma`` (V); ``sigma`` only scales the size
     reported.  ``curve_p``: the p of :func:`output_curve_check` on the same recordings, for
-    the joint test (:meth:`MinorLoopCheck.joint_p`).
+    the joint test (:meth:`MinorLoopCheck.joint_p`).  ``preds``: per recording, a prediction
+    (V) to take the residual against instead of a chain's (an augmented model's with its
+    drift).
     """
     ch = Chain(ctx.given) if chain is None else chain
     pairs: list[tuple[int, LoopShape]] = []
     for i in ctx.diag:  # the identification recordings are not simulated: never read here
         r = ctx.recs[i]
-        e = r.y - np.nan_to_num(ctx.predict_one(i, ch))
+        e = r.y - np.nan_to_num(ctx.predict_one(i, ch) if preds is None else preds[i])
         pairs += [(i, pr) for pr in loop_shapes(r.t, r.u, e, r.usable, y=r.y)]
     check = pooled_loop_check(pairs, sigma)
     check.curve_p = curve_p

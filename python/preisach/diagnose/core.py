@@ -987,16 +987,22 @@ def _loop_effect(
 
 
 def _loops_beside(
-    ctx: Context, chain: Chain, names: Sequence[str], score: Score, holds: HoldPieces, sigma: float
+    ctx: Context,
+    preds: Sequence[np.ndarray],
+    names: Sequence[str],
+    score: Score,
+    holds: HoldPieces,
+    sigma: float,
 ) -> tuple[dict[str, Any], EffectReport | None]:
     """Compare the minor loops with the named effects in the model: non-congruence beside them.
 
     A non-congruence mixed with a larger effect is not named by the selection: beside a
     delay nothing has named yet, the feedback and output-curve forms gain nothing (over
-    blind seeds 42-59, none of 13 such mixtures had it named), and the tests beyond the fine
+    blind seeds 42-59, none of 14 such mixtures had it named), and the tests beyond the fine
     classical model run only when nothing was kept.  The repeated minor loops need no model
-    of the non-congruence: against the prediction of the chain (``chain``, the effects
-    ``names`` kept), loops between the same inputs that still differ in shape or height
+    of the non-congruence: against the augmented model's prediction (``preds``, V per
+    recording, with the effects ``names`` kept and the drift where it is one of them), loops
+    between the same inputs that still differ in shape or height
     (:meth:`~preisach.diagnose.congruency.MinorLoopCheck.passes`, each test at its own bar)
     are what neither a classical model nor the named effects make - a delay, a lag or a
     mode acts alike on loops run alike, a rate dependence too.  Not when the chain's
@@ -1004,7 +1010,7 @@ def _loops_beside(
     drift left in it changes a loop's shape in time.  Returns the check (JSON-ready, key
     ``moves``: whether the holds vetoed it) and the effect (None when the loops agree).
     """
-    lc = minor_loop_check(ctx, sigma, chain)
+    lc = minor_loop_check(ctx, sigma, preds=preds)
     out = lc.as_dict()
     motion = hold_motion(score, holds, sigma)
     out["moves"] = bool(motion is not None and (motion.moves or motion.after_effect))
@@ -1153,7 +1159,9 @@ def _report(
                 effects = [_after_effect(ctx, sel, motion, sigma_hat)]
     loops_beside = None
     if names and "non_congruence" not in names:
-        loops_beside, beside = _loops_beside(ctx, chain, names, final_score, sel.holds, sigma_hat)
+        loops_beside, beside = _loops_beside(
+            ctx, pred_after, names, final_score, sel.holds, sigma_hat
+        )
         if beside is not None:
             effects = [*effects, beside]
     noise_test: dict[str, Any] = {
