@@ -73,8 +73,18 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
     assert len(kept) == len(d["effects"]) and kept[0]["name"].split("/")[0] == "delay"
     assert kept[0]["heldout_rmse"] < kept[0]["baseline_rmse"] and kept[0]["p_value"] < 0.01
     assert all(r["decision"] for r in rows if not r["kept"])
-    assert set(d["noise_test"]) == {"ratio", "threshold", "classical", "holds", "consistent"}
+    assert set(d["noise_test"]) == {
+        "ratio",
+        "threshold",
+        "classical",
+        "holds",
+        "loops_beside",
+        "consistent",
+    }
     assert d["noise_test"]["holds"] is None  # an effect was kept: no hold test
+    beside = d["noise_test"]["loops_beside"]  # an effect was kept: the loops read beside it
+    assert beside is not None and "non_congruence" not in [e["name"] for e in d["effects"]]
+    assert beside["found_by"] == [] and isinstance(beside["moves"], bool), beside
     assert d["noise_test"]["classical"] is None  # an effect was kept: no resolution check
     assert d["verdict"] == "delay"
     for e in d["effects"]:
