@@ -1025,7 +1025,7 @@ def _loops_beside(
     evidence = (
         f"with the {beside} in the model, the recordings' minor loops between the same inputs "
         f"differ {loop_difference_text(out, ctx.output_unit, bars=True)}, tests of Mayergoyz's "
-        f"congruency property that fit no model of it"
+        "congruency property that fit no model of it"
     )
     return out, _loop_effect(ctx, out, lc.curves(ctx), evidence, score.rmse, beside)
 
