@@ -931,24 +931,40 @@ class Context:
                 best = res
         return FittedEffect(cand, np.asarray(best.x, float))
 
-    def fit(self, cand: Candidate, fixed: Chain, train: list[Mask], drift: bool = False) -> Chain:
+    def fit(
+        self,
+        cand: Candidate,
+        fixed: Chain,
+        train: list[Mask],
+        drift: bool = False,
+        starts: Sequence[Array] | None = None,
+    ) -> Chain:
         """Fit ``cand`` on the ``train`` samples after the ``fixed`` chain; returns the new chain.
 
         With ``drift`` every recording's residual is also freed of a smooth drift (fitted
         jointly by projection).  With a refitted base, the Preisach weights are profiled out:
         every evaluation re-solves them by least squares for the candidate's parameters, with
         the blocks linearised about a reference base that is updated ``alternations`` times.
+        ``starts``: parameter vectors to start the optimiser from instead of the candidate's
+        own (the selection folds' fits, for a final fit that must find the mode they found); a
+        family solved by its own least squares has none and ignores them.
         """
         if hasattr(cand, "fit_chain"):  # a family solved by its own least squares
             return cast(Chain, cand.fit_chain(self, fixed, train, drift))
-        return self.fit_profiled(cand, fixed, train, drift)
+        return self.fit_profiled(cand, fixed, train, drift, starts)
 
     def fit_profiled(
-        self, cand: Candidate, fixed: Chain, train: list[Mask], drift: bool = False
+        self,
+        cand: Candidate,
+        fixed: Chain,
+        train: list[Mask],
+        drift: bool = False,
+        starts: Sequence[Array] | None = None,
     ) -> Chain:
         """Fit ``cand`` by the optimiser as :meth:`fit` does (also for a ``fit_chain``)."""
+        starts = None if starts is None else list(starts)  # the first fit's; then its optimum
         if not self.refits(fixed):
-            chain = fixed.plus(self._fit_params(cand, fixed, train, drift, None, profile=False))
+            chain = fixed.plus(self._fit_params(cand, fixed, train, drift, starts, profile=False))
             chosen = self.choose_states(chain, drift)
             if chosen is chain:
                 return chain
@@ -958,7 +974,6 @@ class Context:
             )
             return self.choose_states(Chain(chosen.base, fixed.effects).plus(again), drift)
         ref = fixed.base
-        starts = None
         eff: FittedEffect | None = None
         prob = None
         for _ in range(max(1, self.alternations)):
