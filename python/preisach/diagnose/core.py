@@ -1029,9 +1029,9 @@ def _loops_beside(
         f"beside the {beside}, minor loops between the same inputs still differ "
         f"{loop_difference_text(out, ctx.output_unit, bars=True)}: a non-congruence may be "
         f"there too, or what the {beside} fit leaves differs between the loops - not named "
-        "(on fresh blind cases this read named non-congruence where there was none as often "
-        "as where there was); to tell them apart, record the same minor loop at two output "
-        f"levels slowly, with holds long enough, that the {beside} cannot act on it"
+        "(on fresh blind cases this read named non-congruence where there was none); to tell "
+        "them apart, record the same minor loop at two output levels slowly, with holds long "
+        f"enough, that the {beside} cannot act on it"
     )
 
 
