@@ -125,8 +125,8 @@ class DiagnosisReport:
         curve and a drift in time add to the fine model, in noise variances, with ``p``),
         ``loops_beside`` (None, or when effects other than ``non_congruence`` were kept: the
         repeated minor loops compared against their prediction, as ``minor_loops`` with
-        ``moves``, whether the holds moved; ``non_congruence`` is added when its height test
-        passes and the holds do not move) and ``consistent`` (``ratio <=
+        ``moves``, whether the holds moved; a note, naming no effect, says so when its height
+        test passes and the holds do not move) and ``consistent`` (``ratio <=
         threshold``, or the classical check's verdict).
     unexplained : dict or None
         When the final held-out residual is above ``threshold`` times the noise: ``ratio``,
