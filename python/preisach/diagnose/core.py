@@ -19,7 +19,7 @@ from ..model import PreisachModel, State
 from ..recording import Recording
 from .augmented import AugmentedModel
 from .candidates import Candidate, DriftCandidate
-from .congruency import loop_difference_text, minor_loop_check
+from .congruency import loop_difference_text, minor_loop_check, repeated_loops_text
 from .context import Chain, Context, FittedEffect
 from .data import noise_sigma, prepare_recordings
 from .effects import EffectBlock
@@ -1202,14 +1202,16 @@ def _report(
     ]
     if grid is not None and grid["changed"]:
         notes.append(grid["statement"])
+    loops = (check or {}).get("minor_loops") or {}
     if check is not None and not (base_within and consistent):
         notes.append(check["statement"])
+    elif loops.get("hints"):  # the statement is not shown: the loops' hint is
+        notes.append(repeated_loops_text(loops, ctx.output_unit))
     start_note = _unknown_start_note(ctx, steps, names)
     if start_note:
         notes.append(start_note)
     if beside_note:
         notes.append(beside_note)
-    loops = (check or {}).get("minor_loops") or {}
     if verdict == "none" and check is not None and not loops.get("pairs"):
         notes.append(
             "no recording repeats a minor loop, so congruency was tested only against the fine "

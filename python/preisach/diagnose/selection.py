@@ -74,6 +74,7 @@ from .congruency import (
     loop_difference_text,
     minor_loop_check,
     output_curve_check,
+    repeated_loops_text,
 )
 from .context import Chain, Context, Fold
 from .drift import drift_refuted_by_holds
@@ -824,12 +825,7 @@ def resolution_check(
                 "not a change in time"
             )
         if ok and lc.pairs:
-            statement += (
-                f"; {len(lc.pairs)} pair(s) of repeated minor loops agree in shape up to a "
-                f"vertical shift (F = {lc.F:.3g}, p = {lc.p:.2g}) and in height (p = "
-                f"{lc.height_p:.2g}; with the output curve jointly p = {lc.joint_p():.2g}), "
-                "as a congruent model's do"
-            )
+            statement += "; " + repeated_loops_text(loops, ctx.output_unit)
     if coarser is not None:
         release_fine_systems(ctx, chk.levels)  # nothing else uses the finer grid
     report = {
