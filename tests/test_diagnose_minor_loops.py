@@ -18,11 +18,13 @@ from preisach.diagnose.congruency import (
     LOOP_ALPHA,
     LOOP_HINT_P,
     LOOP_JOINT_ALPHA,
+    LOOP_JOINT_CURVE_GAIN,
     LOOP_MIN_SHAPE,
     LOOP_SCALE_SHARE,
     loop_shapes,
     minor_loop_check,
     pooled_loop_check,
+    repeated_loops_text,
 )
 from preisach.diagnose.context import Chain, Context, FittedEffect
 from preisach.diagnose.data import prepare_recordings
@@ -178,15 +180,43 @@ def test_a_height_change_short_of_its_bar_is_named_with_the_output_curve():
     alone = pooled_loop_check([(0, pr)], 1e-3)  # z = 2.5
     assert 0.01 < alone.height_p < 0.015 and alone.height_share == 1.0, alone
     assert alone.joint_p() is None and not alone.passes(), alone
-    joint = replace(alone, curve_p=0.02)
+    joint = replace(alone, curve_p=0.02, curve_gain=0.02)
     assert 0.002 < joint.joint_p() < 0.003 < LOOP_JOINT_ALPHA, joint.joint_p()
     assert joint.found_by() == ["joint"] and joint.as_dict()["joint_p"] == joint.joint_p(), joint
-    weak = replace(alone, curve_p=0.5)
+    weak = replace(alone, curve_p=0.5, curve_gain=-0.001)
     assert LOOP_JOINT_ALPHA < weak.joint_p() < 0.05 and not weak.passes(), weak.joint_p()
     shaped = pooled_loop_check([(0, replace(pr, rss_same=pr.rss_own + 22e-6))], 1e-3)
-    shaped.curve_p = 0.02  # the shapes differ by more than twice what the height makes
+    # the shapes differ by more than twice what the height makes
+    shaped.curve_p, shaped.curve_gain = 0.02, 0.02
     assert shaped.height_share < LOOP_SCALE_SHARE and shaped.p > LOOP_ALPHA, shaped
     assert not shaped.passes(), shaped
+
+
+@pytest.mark.parametrize(
+    ("scale", "curve_p", "curve_gain", "named"),
+    [
+        (0.003, 0.001, 0.0012, False),  # seed 68's null 015: heights 0.135, curve 0.001
+        (0.003, 0.00125, 0.028, True),  # seed 67's non-congruence 020
+        (0.00625, 0.53, -0.0003, True),  # seed 66's non-congruence 023: heights 0.002
+    ],
+)
+def test_the_joint_test_names_only_what_one_of_its_parts_carries(scale, curve_p, curve_gain, named):
+    """A curve's small p at a gain far below its bar is not half of a finding.
+
+    Blind seed 68's null 015: heights at p 0.135 and the output curve at p 0.001 with a gain
+    of 0.0012 noise variances, jointly p 0.0013, were named ``non_congruence``.  The same p's
+    with a curve gaining 0.028 (seed 67's non-congruence 020), and heights at p 0.002 beside
+    a curve that gains nothing (seed 66's 023), are still named.  Fails when the joint test
+    ignores the curve's gain, or asks it of heights at :data:`LOOP_HINT_P`.
+    """
+    lc = pooled_loop_check([(0, _pair(scale))], 1e-3)
+    lc.curve_p, lc.curve_gain = curve_p, curve_gain
+    assert lc.height_share == 1.0 and lc.joint_p() < LOOP_JOINT_ALPHA, lc
+    assert lc.passes() is named and (lc.found_by() == ["joint"]) is named, lc
+    assert (lc.height_p < LOOP_HINT_P or curve_gain >= LOOP_JOINT_CURVE_GAIN) is named, lc
+    if not named:  # said, with the gain that kept it from being named
+        text = repeated_loops_text(lc.as_dict())
+        assert "jointly p = 0.0013" in text and "0.0012 x the noise variance" in text, text
 
 
 def _dip(u: np.ndarray) -> np.ndarray:

@@ -68,6 +68,7 @@ __all__ = [
     "LOOP_ALPHA",
     "LOOP_HINT_P",
     "LOOP_JOINT_ALPHA",
+    "LOOP_JOINT_CURVE_GAIN",
     "LOOP_MIN_SHAPE",
     "LOOP_RATE_RATIO",
     "LOOP_SCALE_SHARE",
@@ -92,6 +93,14 @@ LOOP_ALPHA = 0.001
 #: the 14 non-congruences left ``none`` (the fine classical model within the noise bound, no
 #: single test passed) had joint p of 0.0001-0.008.
 LOOP_JOINT_ALPHA = 0.01
+#: Least gain (noise variances) of the static output curve beyond the fine classical model for
+#: the joint test to name loops whose heights alone are not at :data:`LOOP_HINT_P`: half of the
+#: curve's own bar (``selection.RESOLUTION_BEYOND_CLASSICAL``).  On long recordings the curve's
+#: sign-flip p is small for a gain far below anything physical: blind seed 68's null 015 had
+#: the curve at p 0.001 with a gain of 0.0012 and heights at p 0.135 (jointly 0.0013).  On
+#: seen seeds 56-68 the nulls' curves gained at most 0.0029; the three non-congruences the
+#: joint test named with heights at p >= 0.01 gained 0.017-0.034 (docs/diagnosis.md, 5zd).
+LOOP_JOINT_CURVE_GAIN = 0.005
 #: Smallest RMS shape difference (in noise standard deviations) it names.
 LOOP_MIN_SHAPE = 0.3
 #: Level below which the shape or height test, short of :data:`LOOP_ALPHA`, is said as a hint
@@ -377,9 +386,10 @@ class MinorLoopCheck:
     (one coefficient for all pairs, as a static curve of the output makes to first order);
     ``height_p`` its two-sided p-value; ``height_share`` (0 to 1) the share of the shape
     differences beyond the noise's that the change of height makes (1 when the shape test
-    sees less beyond the noise than the height alone).  ``curve_p``: the sign-flip p of the
-    static output curve beyond the fine classical model
-    (:func:`output_curve_check`), when that test ran on the same recordings (None if not).
+    sees less beyond the noise than the height alone).  ``curve_p``, ``curve_gain``: the
+    sign-flip p and the gain (noise variances) of the static output curve beyond the fine
+    classical model (:func:`output_curve_check`), when that test ran on the same recordings
+    (None if not).
     """
 
     pairs: list[tuple[int, LoopShape]]  # (recording index, pair)
@@ -393,6 +403,7 @@ class MinorLoopCheck:
     height_p: float = 1.0
     height_share: float = 0.0
     curve_p: float | None = None
+    curve_gain: float | None = None
 
     def joint_p(self) -> float | None:
         """Fisher's combination of the height test's p and ``curve_p`` (None without it).
@@ -416,7 +427,8 @@ class MinorLoopCheck:
         level - the difference a non-congruence makes, told with one parameter where the shape
         test spends one per spline coefficient, so smaller ones show; a drift or creep
         changes a loop's shape in time and rarely its height alone.  The joint test: the height
-        test's share met and :meth:`joint_p` below :data:`LOOP_JOINT_ALPHA`.
+        test's share met, :meth:`joint_p` below :data:`LOOP_JOINT_ALPHA`, and one of the two
+        tests carrying evidence of its own (:meth:`joint_carried`).
         """
         if not self.pairs:
             return []
@@ -425,9 +437,22 @@ class MinorLoopCheck:
         tests = {
             "shape": self.p < alpha and self.shape_rms >= min_shape * self.sigma,
             "height": share and self.height_p < alpha,
-            "joint": share and joint is not None and joint < LOOP_JOINT_ALPHA,
+            "joint": share
+            and joint is not None
+            and joint < LOOP_JOINT_ALPHA
+            and self.joint_carried(),
         }
         return [name for name, found in tests.items() if found]
+
+    def joint_carried(self) -> bool:
+        """Whether one of the joint test's two parts carries evidence of its own.
+
+        The heights at :data:`LOOP_HINT_P`, or the output curve's gain at least
+        :data:`LOOP_JOINT_CURVE_GAIN`: a curve's small p at a gain far below anything physical
+        (long recordings resolve the fine model's last per-mille) is not half of a finding.
+        """
+        gain = self.curve_gain
+        return self.height_p < LOOP_HINT_P or (gain is not None and gain >= LOOP_JOINT_CURVE_GAIN)
 
     def passes(self, alpha: float = LOOP_ALPHA, min_shape: float = LOOP_MIN_SHAPE) -> bool:
         """Whether the loops are not congruent by any test of :meth:`found_by`."""
@@ -487,6 +512,7 @@ class MinorLoopCheck:
             "height_p": self.height_p,
             "height_share": self.height_share,
             "curve_p": self.curve_p,
+            "curve_gain": self.curve_gain,
             "joint_p": self.joint_p(),
             "found_by": self.found_by(),
             "hints": self.hints(),
@@ -545,6 +571,18 @@ def repeated_loops_text(lc: dict[str, Any], unit: str = "V") -> str:
         )
     joint = lc.get("joint_p")
     joint_text = "" if joint is None else f"; with the output curve jointly p = {joint:.2g}"
+    gain = lc.get("curve_gain")
+    if (
+        joint is not None
+        and joint < LOOP_JOINT_ALPHA
+        and gain is not None
+        and lc["height_share"] >= LOOP_SCALE_SHARE
+    ):
+        # refused by MinorLoopCheck.joint_carried
+        joint_text += (
+            f", carried by a curve that adds only {gain:.2g} x the noise variance "
+            f"(at least {LOOP_JOINT_CURVE_GAIN:g} to name it)"
+        )
     return (
         f"{lc['pairs']} pair(s) of repeated minor loops agree in shape up to a vertical shift "
         f"(F = {lc['F']:.3g}, p = {lc['p']:.2g}) and in height (p = {lc['height_p']:.2g}"
@@ -558,6 +596,7 @@ def minor_loop_check(
     chain: Chain | None = None,
     curve_p: float | None = None,
     preds: Sequence[Array] | None = None,
+    curve_gain: float | None = None,
 ) -> MinorLoopCheck:
     """Test the diagnosis recordings' comparable minor loops for congruency.
 
@@ -572,10 +611,10 @@ def minor_loop_check(
     residual is against that chain's prediction instead: whether a fitted effect makes
     loops that agree differ.  The F-test's denominator is the residual about each loop's
     own spline, so it does not lean on ``sigma`` (V); ``sigma`` only scales the size
-    reported.  ``curve_p``: the p of :func:`output_curve_check` on the same recordings, for
-    the joint test (:meth:`MinorLoopCheck.joint_p`).  ``preds``: per recording, a prediction
-    (V) to take the residual against instead of a chain's (an augmented model's with its
-    drift).
+    reported.  ``curve_p``, ``curve_gain``: the p and gain of :func:`output_curve_check` on the
+    same recordings, for the joint test (:meth:`MinorLoopCheck.joint_p`).  ``preds``: per
+    recording, a prediction (V) to take the residual against instead of a chain's (an
+    augmented model's with its drift).
     """
     ch = Chain(ctx.given) if chain is None else chain
     pairs: list[tuple[int, LoopShape]] = []
@@ -584,7 +623,7 @@ def minor_loop_check(
         e = r.y - np.nan_to_num(ctx.predict_one(i, ch) if preds is None else preds[i])
         pairs += [(i, pr) for pr in loop_shapes(r.t, r.u, e, r.usable, y=r.y)]
     check = pooled_loop_check(pairs, sigma)
-    check.curve_p = curve_p
+    check.curve_p, check.curve_gain = curve_p, curve_gain
     return check
 
 

@@ -759,7 +759,7 @@ def resolution_check(
         passes = dc.passes(RESOLUTION_BEYOND_CLASSICAL)
         finer = _confirm_drift(ctx, sigma, dc, chk.levels) if passes else []
         last_levels, last = finer[-1] if finer else (0, None)
-        lc = minor_loop_check(ctx, sigma, curve_p=cc.p)
+        lc = minor_loop_check(ctx, sigma, curve_p=cc.p, curve_gain=cc.gain)
         curve = cc.as_dict()
         drift = {
             "gain_noise_variances": dc.gain,
