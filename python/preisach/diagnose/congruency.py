@@ -98,7 +98,7 @@ LOOP_JOINT_ALPHA = 0.01
 #: of the curve's own bar (``selection.RESOLUTION_BEYOND_CLASSICAL``).  On long recordings the
 #: curve's sign-flip p is small for a gain far below anything physical: blind seed 68's null
 #: 015 had the curve at p 0.001 with a gain of 0.0012 and heights at p 0.135 (jointly 0.0013).
-#: On seen seeds 56-68 the nulls whose curves were at p < 0.05 gained at most 0.0012; of the
+#: On seen seeds 56-69 the nulls whose curves were at p < 0.05 gained at most 0.0012; of the
 #: non-congruences the joint test named with heights at p >= 0.01 on seen seeds 44-67, six
 #: gained 0.0039-0.034 and one (44/021) 0.0021, now left ``none`` (docs/diagnosis.md, 5zd).
 LOOP_JOINT_CURVE_GAIN = 0.0025
