@@ -434,16 +434,19 @@ class MinorLoopCheck:
         if not self.pairs:
             return []
         share = self.height_share >= LOOP_SCALE_SHARE
-        joint = self.joint_p()
         tests = {
             "shape": self.p < alpha and self.shape_rms >= min_shape * self.sigma,
             "height": share and self.height_p < alpha,
-            "joint": share
-            and joint is not None
-            and joint < LOOP_JOINT_ALPHA
-            and self.joint_carried(),
+            "joint": self._joint_below() and self.joint_carried(),
         }
         return [name for name, found in tests.items() if found]
+
+    def _joint_below(self) -> bool:
+        """Tell whether :meth:`joint_p` is below :data:`LOOP_JOINT_ALPHA`, the share met."""
+        joint = self.joint_p()
+        return (
+            self.height_share >= LOOP_SCALE_SHARE and joint is not None and joint < LOOP_JOINT_ALPHA
+        )
 
     def joint_carried(self) -> bool:
         """Whether one of the joint test's two parts carries evidence of its own.
@@ -515,6 +518,8 @@ class MinorLoopCheck:
             "curve_p": self.curve_p,
             "curve_gain": self.curve_gain,
             "joint_p": self.joint_p(),
+            # below its level, but neither part carries it (not named)
+            "joint_uncarried": self._joint_below() and not self.joint_carried(),
             "found_by": self.found_by(),
             "hints": self.hints(),
         }
@@ -572,16 +577,9 @@ def repeated_loops_text(lc: dict[str, Any], unit: str = "V") -> str:
         )
     joint = lc.get("joint_p")
     joint_text = "" if joint is None else f"; with the output curve jointly p = {joint:.2g}"
-    gain = lc.get("curve_gain")
-    if (
-        joint is not None
-        and joint < LOOP_JOINT_ALPHA
-        and gain is not None
-        and lc["height_share"] >= LOOP_SCALE_SHARE
-    ):
-        # refused by MinorLoopCheck.joint_carried
+    if lc.get("joint_uncarried") and lc["curve_gain"] is not None:  # MinorLoopCheck.joint_carried
         joint_text += (
-            f", carried by a curve that adds only {gain:.2g} x the noise variance "
+            f", carried by a curve that adds only {lc['curve_gain']:.2g} x the noise variance "
             f"(at least {LOOP_JOINT_CURVE_GAIN:g} to name it)"
         )
     return (
@@ -596,8 +594,8 @@ def minor_loop_check(
     sigma: float,
     chain: Chain | None = None,
     curve_p: float | None = None,
-    preds: Sequence[Array] | None = None,
     curve_gain: float | None = None,
+    preds: Sequence[Array] | None = None,
 ) -> MinorLoopCheck:
     """Test the diagnosis recordings' comparable minor loops for congruency.
 
