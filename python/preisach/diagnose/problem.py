@@ -26,6 +26,8 @@ __all__ = ["Problem"]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
+#: one recording of :meth:`Problem.scan_linear`: index, rows, residual, drift basis and system
+ScanPart = tuple[int, NDArray[np.intp], Array, "tuple[Array, Array] | None"]
 
 
 class Problem:
@@ -78,6 +80,7 @@ class Problem:
         outs = [e for e in effs if e.cand.side == "output"]
         self.ins = [e for e in effs if e.cand.side != "output" and e.cand.side != cand.side]
         self.up: dict[int, Array] = {}
+        self._scan_parts: list[ScanPart] | None = None
         self.stages: dict[int, Stage] = {}
         if cand.side == "output":
             for i, ix in enumerate(self.idx):
@@ -279,27 +282,41 @@ class Problem:
         ``residual ~ c * signal`` on the (coarse) training samples, ignoring downstream blocks.
         """
         rg = gg = 0.0
-        for i, ix in enumerate(self.coarse):
-            if ix.size == 0 or i not in self.up:
-                continue
+        for i, ix, r, drift in self._scan_residuals():
             g = make(i, self.up[i])[ix]
-            r = (
-                self.ctx.recs[i].y[ix]
-                - self.ctx.output_side(i, self.up[i], self.down, self.stages[i])[ix]
-            )
-            pr = self.proj[i]
-            if pr is not None:
-                A, Ginv = pr
-                sub = np.searchsorted(self.idx[i], ix)
-                A = A[sub]
-                G = A.T @ A
-                r = r - A @ np.linalg.lstsq(G, A.T @ r, rcond=None)[0]
+            if drift is not None:
+                A, G = drift
                 g = g - A @ np.linalg.lstsq(G, A.T @ g, rcond=None)[0]
             rg += float(r @ g)
             gg += float(g @ g)
         if gg <= 0:
             return 0.0, 0.0
         return rg / gg, rg * rg / gg
+
+    def _scan_residuals(self) -> list[ScanPart]:
+        """Return what :meth:`scan_linear` needs per recording (the same for every signal).
+
+        Its coarse rows, the training residual there (freed of its drift fit), and the drift
+        basis at those rows with its normal matrix (None without a drift); computed once.
+        """
+        if self._scan_parts is None:
+            self._scan_parts = []
+            for i, ix in enumerate(self.coarse):
+                if ix.size == 0 or i not in self.up:
+                    continue
+                r = (
+                    self.ctx.recs[i].y[ix]
+                    - self.ctx.output_side(i, self.up[i], self.down, self.stages[i])[ix]
+                )
+                drift = None
+                pr = self.proj[i]
+                if pr is not None:
+                    A = pr[0][np.searchsorted(self.idx[i], ix)]
+                    G = A.T @ A
+                    r = r - A @ np.linalg.lstsq(G, A.T @ r, rcond=None)[0]
+                    drift = (A, G)
+                self._scan_parts.append((i, ix, r, drift))
+        return self._scan_parts
 
     def linear_feedback_scan(self, gains: Array, zeros: Array) -> Array | None:
         """Coarse training SSE (V^2) of the linear feedback ``a (y - y_c)`` at every point, in C++.
