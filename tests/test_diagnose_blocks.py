@@ -115,6 +115,37 @@ def test_a_mode_with_a_reaction_is_the_zoh_of_its_transfer_function():
     assert back.to_dict() == SecondOrderMode(DT, f_n=50.0, zeta=0.1, participation=0.4).to_dict()
 
 
+def test_a_mode_under_a_first_order_hold_is_its_response_to_the_input_linear_between_samples():
+    # hold 1: the continuous system driven by the samples joined by straight lines (scipy's
+    # lsim interpolates so); hold h: the mix (1 - h) zero-order + h first-order, unit DC gain
+    from scipy import signal
+
+    x = np.r_[0.0, np.random.default_rng(3).standard_normal(399).cumsum()]
+    t = np.arange(x.size) * DT
+    for f, z, m, r in ((120.0, 0.1, 0.3, 0.5), (264.0, 0.03, 0.9, 0.0), (40.0, 0.02, 1.2, -0.7)):
+        w = 2 * math.pi * f
+        den = np.array([1.0, 2 * z * w, w * w])
+        num = den + m * (np.array([0.0, 0.0, w * w]) - den) - r * np.array([1.0, 0.0, 0.0])
+        _, want, _ = signal.lsim((num, den), x, t, interp=True)
+        blocks = [
+            SecondOrderMode(DT, f_n=f, zeta=z, participation=m, reaction=r, hold=h)
+            for h in (0.0, 1.0, 0.3)
+        ]
+        runs = []
+        for b in blocks:
+            b.reset(0.0)
+            runs.append(b.run(x))
+        zoh, foh, mix = runs
+        np.testing.assert_allclose(foh, want, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(mix, 0.7 * zoh + 0.3 * foh, rtol=0, atol=1e-9)
+        assert np.abs(foh - zoh).max() > 0.05 * np.abs(np.diff(x)).max()
+        assert blocks[2].reset(1.7) == 1.7 and blocks[2].run(np.full(50, 1.7)) == pytest.approx(1.7)
+    # files written before the hold existed load with a zero-order hold
+    old = SecondOrderMode(DT, f_n=50.0, zeta=0.1, participation=0.4).to_dict()
+    del old["params"]["hold"]
+    assert effect_from_dict(old).params["hold"] == 0.0
+
+
 def test_structural_mode_rings_at_its_frequency():
     m = SecondOrderMode(DT, f_n=40.0, zeta=0.01, participation=1.0)
     m.reset(0.0)

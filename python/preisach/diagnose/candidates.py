@@ -653,6 +653,8 @@ class ModeCandidate(LinearDynamicsForm):
             ParamSpec("f_n", "Hz", 1.0, 0.45 / ctx.dt_min, 10.0),
             ParamSpec("zeta", "", 0.003, 1.0, 0.02),
             ParamSpec("participation", "", 0.0, 5.0, 0.5),
+            # last: how the mode's input moves between its samples (see SecondOrderMode)
+            ParamSpec("hold", "", 0.0, 1.0, 0.5),
         ]
 
     def starts(self, ctx: Context) -> list[Array]:
@@ -663,38 +665,57 @@ class ModeCandidate(LinearDynamicsForm):
         # (at least two points: a FORC file's 0.2 s samples leave no band above 2 Hz)
         grid = np.geomspace(2.0, fmax, max(2, int(np.log(fmax / 2.0) / np.log(1.06)) + 1))
         if prob is None:  # pragma: no cover - only called inside a fit
-            return [np.array([grid[len(grid) // 2], 0.05, 0.1])]
+            return [np.array([grid[len(grid) // 2], 0.05, 0.1, 0.0])]
         # the scan sees only the training residual before the mode: every mode form (the
         # participation alone, with a reaction) shares it per problem (problem_key)
-        cache: dict[Any, list[tuple[float, float, float, float]]]
+        cache: dict[Any, list[tuple[float, float, float, float, float]]]
         cache = ctx.__dict__.setdefault("_mode_scans", {})
         key = (problem_key(prob), self.order)
         found = cache.get(key)
         if found is None:
             found = []
-            for z in (0.015, 0.06, 0.25):
-                for f in grid:
-                    blk = SecondOrderMode(ctx.dt_min, f_n=f, zeta=z, participation=1.0)
+            # both holds: at f_n the two differ by half a sample of phase (48 degrees at
+            # 264 Hz sampled at 1 kHz), and a ring scanned with the wrong one projects to
+            # almost nothing (seed-69 blind case 023: its 264 Hz mode's best zero-order-hold
+            # scan gain was at 24 Hz, the first-order hold's at 265 Hz)
+            for h in self.HOLDS:
+                for z in (0.015, 0.06, 0.25):
+                    for f in grid:
+                        blk = SecondOrderMode(ctx.dt_min, f_n=f, zeta=z, participation=1.0, hold=h)
 
-                    def make(i: int, up: Array, blk: SecondOrderMode = blk) -> Array:
-                        b = blk if ctx.recs[i].dt == blk.dt else blk.with_dt(ctx.recs[i].dt)
-                        b.reset(float(up[0]))
-                        return b.run(up) - up
+                        def make(i: int, up: Array, blk: SecondOrderMode = blk) -> Array:
+                            b = blk if ctx.recs[i].dt == blk.dt else blk.with_dt(ctx.recs[i].dt)
+                            b.reset(float(up[0]))
+                            return b.run(up) - up
 
-                    c, gain = prob.scan_linear(make)
-                    if c > 0:
-                        found.append((gain, f, z, min(c, 5.0)))
+                        c, gain = prob.scan_linear(make)
+                        if c > 0:
+                            found.append((gain, f, z, min(c, 5.0), h))
             found.sort(reverse=True)
             cache[key] = found
         extra = []
         if cls is not None and cls.kind == "mode" and found:  # the general block's pole pair
-            extra = [np.array([cls.f_n, max(cls.zeta, 0.004), found[0][3]])]
-        return [np.array([f, z, c]) for _, f, z, c in found[:2]] + extra or [
-            np.array([grid[len(grid) // 2], 0.05, 0.0])
+            extra = [np.array([cls.f_n, max(cls.zeta, 0.004), found[0][3], found[0][4]])]
+        return [np.array([f, z, c, h]) for _, f, z, c, h in found[:2]] + extra or [
+            np.array([grid[len(grid) // 2], 0.05, 0.0, 0.0])
         ]
 
+    #: The holds the start scan tries (zero order, first order).
+    HOLDS: ClassVar[tuple[float, ...]] = (0.0, 1.0)
+
     def params(self, x: Array) -> dict[str, Any]:
-        return {"f_n": float(x[0]), "zeta": float(x[1]), "participation": float(x[2])}
+        return {
+            "f_n": float(x[0]),
+            "zeta": float(x[1]),
+            "participation": float(x[2]),
+            "hold": self.hold(x),
+        }
+
+    @classmethod
+    def hold(cls, x: Array) -> float:
+        """Return the fitted hold (after the reaction when fitted; 0 in a vector without one)."""
+        k = 4 if cls.REACTION else 3
+        return float(x[k]) if len(x) > k else 0.0
 
     #: Largest damping ratio of a mode that rings (a visible overshoot: 37 % at 0.3).
     MAX_ZETA: ClassVar[float] = 0.3
@@ -744,13 +765,16 @@ class ModeCandidate(LinearDynamicsForm):
     #: lowered a narrow band of the residual, not a ring).
     MIN_RING_SIGMAS: ClassVar[float] = 3.0
 
-    @staticmethod
-    def ring_share(x: Array) -> float:
+    #: Whether the fitted vector holds a reaction (``x[3]``, before the hold).
+    REACTION: ClassVar[bool] = False
+
+    @classmethod
+    def ring_share(cls, x: Array) -> float:
         """Return the share of an input step's output change that arrives through the ring.
 
         The participation, plus the reaction to the actuator's acceleration when fitted.
         """
-        return float(x[2] + x[3]) if len(x) > 3 else float(x[2])
+        return float(x[2] + x[3]) if cls.REACTION else float(x[2])
 
     def unseen_ring(self, x: Array, ctx: Context) -> str | None:
         """Why a step across the whole output span would ring below the noise (or None).
@@ -770,7 +794,7 @@ class ModeCandidate(LinearDynamicsForm):
 
     def statement(self, x: Array, cov: Array | None, ctx: Context) -> str:
         seen = f"seen with participation {_pm(x[2], _sd(cov, 2), '.2g')}"
-        if len(x) > 3:
+        if self.REACTION:
             seen += f" and reaction to the actuator's acceleration {_pm(x[3], _sd(cov, 3), '.2g')}"
             # the share of a step that arrives through the ring is what the data fix best
             sd = float("nan") if cov is None else math.sqrt(max(cov[2:4, 2:4].sum(), 0.0))
@@ -795,16 +819,18 @@ class ModeReactionCandidate(ModeCandidate):
     """
 
     variant = "reaction"
+    REACTION = True
 
     #: bound of ``|r|``: a recoil larger than the actuator's own stroke is not a mount's
     MAX_REACTION: ClassVar[float] = 1.0
 
     def specs(self, ctx: Context) -> list[ParamSpec]:
         r = self.MAX_REACTION
-        return [*super().specs(ctx), ParamSpec("reaction", "", -r, r, 0.5)]
+        *mode, hold = super().specs(ctx)
+        return [*mode, ParamSpec("reaction", "", -r, r, 0.5), hold]
 
     def starts(self, ctx: Context) -> list[Array]:
-        return [np.r_[x, 0.0] for x in super().starts(ctx)]
+        return [np.insert(x, 3, 0.0) for x in super().starts(ctx)]
 
     def params(self, x: Array) -> dict[str, Any]:
         return {**super().params(x), "reaction": float(x[3])}

@@ -300,11 +300,13 @@ def _repeated_ring(
     One such block is enough when the mode is lightly damped in every fold (damping ratio
     below :data:`ONE_RING_ZETA`: tens of visible cycles) and the folds agree within
     :data:`ONE_RING_F` (odds of about 1 in 270 by chance): the fold that predicted the
-    block never saw it.  Blind seed 63's case 002 (a 270 Hz mode, damping ratio 0.005) rang
-    far above the noise after one step only: 99 % of the held-out gain (35 %) sat in one of
-    42 blocks (sign-flip p 0.33), and the folds found 268.5 and 268.8 Hz, damping ratios
-    0.003 and 0.0035.  A delay's or a creep's "modes" never passed: their folds disagree or
-    do not ring (damping ratio 0.25 or more where they agreed, seed 56's delay 022).
+    block never saw it.  Blind seed 63's case 002 (a 270 Hz mode, damping ratio 0.005), fitted
+    under a zero-order hold alone, rang far above the noise after one step only: 99 % of the
+    held-out gain (35 %) sat in one of 42 blocks (sign-flip p 0.33), and the folds found
+    268.5 and 268.8 Hz, damping ratios 0.003 and 0.0035.  (With the mode's hold fitted the
+    smaller steps' rings are predicted too, and it passes the sign-flip test.)  A delay's or
+    a creep's "modes" never passed: their folds disagree or do not ring (damping ratio 0.25
+    or more where they agreed, seed 56's delay 022).
     """
     if sigma <= 0 or not _rings(ctx, cand, chains, pieces):
         return None
