@@ -658,7 +658,7 @@ class ModeCandidate(LinearDynamicsForm):
         ]
 
     def starts(self, ctx: Context) -> list[Array]:
-        # scan f_n on a 4 % grid and a few dampings; the participation is linear: project on it
+        # scan f_n on a 6 % grid and a few dampings; the participation is linear: project on it
         cls = self.classification(ctx)
         prob = ctx._problem
         fmax = 0.4 / ctx.dt_min

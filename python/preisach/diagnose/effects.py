@@ -363,10 +363,9 @@ def _mode_foh(wn: float, zeta: float, dt: float) -> tuple[Array, Array, Array]:
     Phi, Gamma, Gamma1 = E[:2, :2], E[:2, 2], E[:2, 3] / dt
     tr = float(np.trace(Phi))
     a = np.array([1.0, -tr, float(np.linalg.det(Phi))])
-    P = Phi - tr * np.eye(2)
+    P, rest = Phi - tr * np.eye(2), Gamma - Gamma1
 
     def num(c: Array) -> Array:
-        rest = Gamma - Gamma1
         return np.array([c @ Gamma1, c @ (P @ Gamma1) + c @ rest, c @ (P @ rest)])
 
     b = num(np.array([1.0, 0.0]))
