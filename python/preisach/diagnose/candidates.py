@@ -708,10 +708,11 @@ class ModeCandidate(LinearDynamicsForm):
                 if all(abs(f0 / f1 - 1.0) > self.REFINE_SPAN for f1, _ in best):
                     best.append((f0, h0))
             steps = np.arange(-12, 13) * (self.REFINE_SPAN / 12)
+            fn = self.specs(ctx)[0]  # within the fit's bounds of f_n
             for f0, h0 in best:
                 for z in (0.005, 0.015):
                     for f in f0 * (1.0 + steps):
-                        if 1.0 < f < 0.45 / ctx.dt_min:
+                        if fn.lo < f < fn.hi:
                             scan(float(f), z, h0)
             found.sort(reverse=True)
             cache[key] = found
