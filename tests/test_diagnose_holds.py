@@ -232,8 +232,8 @@ def test_the_final_fit_is_checked_against_its_name_too():
     cand = ModeCandidate()
     ctx: Any = SimpleNamespace(dt_min=1e-3, noise_sigma=2e-3, y_span=10.0, output_unit="V")
     holds = HoldPieces([(0, 0, 100)] * 4, np.full(4, 1.0), np.zeros(4))
-    plain: Any = SimpleNamespace(veto_lifted=set())
-    lifted: Any = SimpleNamespace(veto_lifted={cand.key})
+    plain: Any = SimpleNamespace(veto_lifted=set(), fast_creep={})
+    lifted: Any = SimpleNamespace(veto_lifted={cand.key}, fast_creep={})
 
     def chain(f: float, z: float) -> Chain:
         return Chain(Base(), [FittedEffect(cand, np.array([f, z, 0.1]))])

@@ -893,10 +893,11 @@ class CreepCandidate(Candidate):
     def params(self, x: Array) -> dict[str, Any]:
         return {"taus": list(self.taus), "weights": [float(c) for c in x[1:]], "gain": float(x[0])}
 
-    def implausible(self, x: Array, ctx: Context) -> str | None:
+    def implausible(self, x: Array, ctx: Context, *, late: bool = True) -> str | None:
+        """Why the fit is not creep; ``late=False`` skips the test that it goes on for seconds."""
         from .rate_family import creep_implausible  # creep must go on for seconds
 
-        return creep_implausible(ctx, self.taus, x[1:], float(x[0]))
+        return creep_implausible(ctx, self.taus, x[1:], float(x[0]), late=late)
 
     def bank_columns(self, ctx: Context) -> list[Array]:
         """Return each relaxation mode's ``L_i x - x`` of the given model's output, per recording.

@@ -614,6 +614,8 @@ def _final_fits(ctx: Context, cands: list[Candidate], sel: Selection, do_refit: 
             ev += ("; qualified on the holds: " if qual else "; ") + held.statement()
         if key in st.by_ring:
             ev += f"; qualified on its repeated ring: {st.by_ring[key]}"
+        if key in st.fast_creep:
+            ev += f"; qualified although fast: {st.fast_creep[key]}"
         bad = final_implausible(ctx, cand, chain, st, key, sel.holds)
         if bad:
             ev += f"; CAUTION: the fit on all usable samples is implausible for its name: {bad}"

@@ -71,6 +71,7 @@ __all__ = [
     "RateFamilyCandidate",
     "hold_motion",
     "hold_motion_of",
+    "late_share",
 ]
 
 Array = NDArray[np.float64]
@@ -307,8 +308,24 @@ CREEP_MIN_T: float = 2.0
 CREEP_MIN_LATE_SHARE: float = 0.1
 
 
+def late_share(taus: ArrayLike, weights: ArrayLike) -> float:
+    """Share of a relaxation bank's movement that comes later than 1 s after a move.
+
+    Lags of time constants ``taus`` (s) with non-negative ``weights`` (negative ones count as
+    0): ``sum(c exp(-1 / tau)) / sum(c)``; 0 for a bank with no weight.
+    """
+    c = np.clip(np.asarray(weights, dtype=float), 0.0, None)
+    t = np.asarray(taus, dtype=float)
+    return float(np.sum(c * np.exp(-1.0 / t)) / c.sum()) if c.sum() > 0 else 0.0
+
+
 def creep_implausible(
-    ctx: Context, taus: Sequence[float], weights: ArrayLike, gain: float = 1.0
+    ctx: Context,
+    taus: Sequence[float],
+    weights: ArrayLike,
+    gain: float = 1.0,
+    *,
+    late: bool = True,
 ) -> str | None:
     """Why a fitted creep is not creep (None when it is, or the data cannot tell).
 
@@ -318,7 +335,9 @@ def creep_implausible(
     * the fit itself is over within a second: less than :data:`CREEP_MIN_LATE_SHARE` of its
       movement (lags of time constants ``taus`` with ``weights``, settled gain ``gain``,
       :class:`~.effects.PronyCreep`) comes later than 1 s after a move - a lag, or rate
-      dependence settling with its rate filter;
+      dependence settling with its rate filter (not tested when ``late`` is False: a fast
+      creep, which nothing acting within a second explains as well, see
+      :func:`~.selection.run_selection`);
     * the holds of the recordings (at least three of 1.25 s or more) refute its late motion:
       from 0.5 s into a hold the output follows the move before it (:func:`hold_motion`) by
       less than the fit makes it, by more than :data:`CREEP_MIN_T` standard errors - unless
@@ -329,8 +348,8 @@ def creep_implausible(
     """
     c = np.clip(np.asarray(weights, dtype=float), 0.0, None)
     t = np.asarray(taus, dtype=float)
-    if c.sum() > 0:
-        share = float(np.sum(c * np.exp(-1.0 / t)) / c.sum())
+    if late and c.sum() > 0:
+        share = late_share(t, c)
         if share < CREEP_MIN_LATE_SHARE:
             return (
                 f"the fitted after-effect is over within a second ({100 * share:.2g} % of it "
