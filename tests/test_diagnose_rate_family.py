@@ -307,7 +307,7 @@ def test_late_share_is_the_bank_movement_after_one_second():
 @pytest.mark.slow
 def test_a_creep_of_tenths_of_a_second_is_named_creep(tmp_path):
     """Blind seed 74's case 017 (scripts/blind2, written from physical descriptions only): a
-    Kelvin-Voigt creep with time constants of 0.25 and 0.28 s, 12 x the noise.  The creep
+    Kelvin-Voigt creep with time constants of 0.25 and 0.28 s, 6.5 x the noise.  The creep
     fit gains 64 % but less than a tenth of it moves later than 1 s after a move, so the
     late-share rule refused it ("a lag or rate dependence"), and a rate dependence that
     gained 15 % was named.  Nothing that acts faster explains half as much: it is a creep of
