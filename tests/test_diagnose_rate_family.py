@@ -321,7 +321,11 @@ def test_a_creep_of_tenths_of_a_second_is_named_creep(tmp_path):
     recs = [Recording.load(p) for p in sorted(case.glob("exp*.csv"))]
     model = identify([ident], progress=False).model
     rep = diagnose(
-        model, recs, identification=[ident], candidates=["creep", "rate_dependence"], progress=False
+        model,
+        recs,
+        identification=[ident],
+        candidates=["creep", "rate_dependence", "delay"],
+        progress=False,
     )
     assert rep.verdict == "creep", rep.summary()
     eff = rep.effects[0]

@@ -172,6 +172,9 @@ CREEP_FAST_RIVAL = 0.5
 #: ... and at least this share of it comes later than 1 s after a move (a single lag of
 #: 0.145 s leaves 0.1 %)
 CREEP_FAST_MIN_SHARE = 1e-3
+#: ... and candidates of these kinds (what acts within a second) were fitted beside it: a
+#: creep offered alone has no rival to be compared with
+CREEP_FAST_RIVALS = frozenset({"delay", "rate_dependence"})
 
 __all__ = [
     "Selection",
@@ -416,12 +419,13 @@ def _fast_creep(
     this rule either, and the case is named creep from the holds as before) and 74/017, a
     Kelvin-Voigt creep with time constants of 0.25 and 0.28 s, whose creep fit gained 64 %
     and the best rival 15 % (a rate dependence, which was named).  An after-effect of
-    tenths of a second is a creep no lag, delay or rate form reaches.  It is named when the
-    step's best qualifying rival gains less than :data:`CREEP_FAST_RIVAL` of ``gain``, at
-    least :data:`CREEP_FAST_MIN_SHARE` of every fold's fit moves later than 1 s (an
-    after-effect over in tens of ms is a lag whatever explains it), and the holds refute no
-    fold's fit.  ``rival``: the step's best qualifying gain.  Returns the evidence in words,
-    or None.
+    tenths of a second is a creep no lag, delay or rate form reaches.  It is named when
+    candidates of every kind in :data:`CREEP_FAST_RIVALS` were fitted in the step (checked by
+    the caller: a creep offered alone has nothing to be compared with), the step's best
+    qualifying rival gains less than :data:`CREEP_FAST_RIVAL` of ``gain``, at least
+    :data:`CREEP_FAST_MIN_SHARE` of every fold's fit moves later than 1 s (an after-effect
+    over in tens of ms is a lag whatever explains it), and the holds refute no fold's fit.
+    ``rival``: the step's best qualifying gain.  Returns the evidence in words, or None.
     """
     fits = fold_fits(cand, chains)
     if not fits or rival >= CREEP_FAST_RIVAL * gain:
@@ -1049,11 +1053,12 @@ def run_selection(
                 )
             )
         # a creep refused only because its fit is over within a second is named when nothing
-        # that qualifies explains half as much (_fast_creep)
+        # that qualifies explains half as much, a delay and a rate dependence tried (_fast_creep)
         rival = max((gains[n] for n in scores if ok[n]), default=0.0)
+        tried = {remaining[n].name for n in scores} >= CREEP_FAST_RIVALS
         for name in scores:
             cand = remaining[name]
-            if name in passed and not ok[name] and isinstance(cand, CreepCandidate):
+            if tried and name in passed and not ok[name] and isinstance(cand, CreepCandidate):
                 fast = _fast_creep(ctx, cand, new_chains[name], gains[name], rival)
                 if fast:
                     ok[name], why[name], fast_creep[name] = True, f"qualifies: {fast}", fast
