@@ -416,10 +416,11 @@ def _fast_creep(
     past its held-out gain, noise and significance tests) the best qualifying candidate
     gained at least 1.1 x what the refused creep did, but in two cases: 67/015 (a drift with
     a creep; its creep fit gained 2.8 % with nothing qualifying beside it, is not taken by
-    this rule either, and the case is named creep from the holds as before) and 74/017, a
-    Kelvin-Voigt creep with time constants of 0.25 and 0.28 s, whose creep fit gained 64 %
-    and the best rival 15 % (a rate dependence, which was named).  An after-effect of
-    tenths of a second is a creep no lag, delay or rate form reaches.  It is named when
+    this rule either; the case is named creep beyond the fine classical model, as before)
+    and 74/017, a Kelvin-Voigt creep with time constants of 0.25 and 0.28 s, whose creep fit
+    gained 64 % and the best rival 15 % (a rate dependence, which was named).  An
+    after-effect of tenths of a second is a creep no lag, delay or rate form reaches.  It is
+    named when
     candidates of every kind in :data:`CREEP_FAST_RIVALS` were fitted in the step (checked by
     the caller: a creep offered alone has nothing to be compared with), the step's best
     qualifying rival gains less than :data:`CREEP_FAST_RIVAL` of ``gain``, at least
