@@ -3,7 +3,8 @@
 They are never copied into the repository (see ``../shared/data/README.md`` for their licences);
 tests that need them skip, naming this folder, when it does not hold them.  Also: a script of
 ``scripts/`` loaded as a module (:func:`script_module`), and a case of the blind generator
-written to disk (:func:`blind_case`).
+written to disk (:func:`blind_case`), and read with its identified model
+(:func:`blind_identified`).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import importlib.util
 import os
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA_DIR = Path(os.environ.get("PREISACH_DATA") or ROOT.parent / "shared" / "data")
@@ -38,3 +40,15 @@ def blind_case(out: Path, seed: int, index: int) -> tuple[Path, list[str]]:
     (out / "truth").mkdir(parents=True, exist_ok=True)
     gen.make_case(job)
     return out / f"case_{index:03d}", list(job[2])
+
+
+def blind_identified(out: Path, seed: int, index: int) -> tuple[list[str], Any, Any, list[Any]]:
+    """:func:`blind_case`, read as a user would: the forms, the model ``preisach identify``
+    makes from its ``id.csv``, that recording, and the experiments (``exp*.csv``, in order)."""
+    from preisach import Recording
+    from preisach.identify import identify
+
+    case, forms = blind_case(out, seed, index)
+    ident = Recording.load(case / "id.csv")
+    recs = [Recording.load(p) for p in sorted(case.glob("exp*.csv"))]
+    return forms, identify([ident], progress=False).model, ident, recs

@@ -113,14 +113,10 @@ def test_a_lightly_damped_mode_between_the_scans_steps_is_found(tmp_path):
     off (half the 6 % coarse step) projects it at almost nothing: from the coarse scan alone
     the best fit gained 5 % and the case was ``unexplained``.  The fine scan about the best
     coarse frequencies finds it.  Fails with ``REFINE_BEST = 0``."""
-    from _paths import blind_case
-    from preisach.identify import identify
+    from _paths import blind_identified
 
-    case, forms = blind_case(tmp_path, 73, 5)
+    forms, model, ident, recs = blind_identified(tmp_path, 73, 5)
     assert forms == ["frame_reaction_mode"]
-    ident = Recording.load(case / "id.csv")
-    recs = [Recording.load(p) for p in sorted(case.glob("exp*.csv"))]
-    model = identify([ident], progress=False).model
     rep = diagnose(
         model, recs, identification=[ident], candidates=["structural_resonance"], progress=False
     )

@@ -312,14 +312,10 @@ def test_a_creep_of_tenths_of_a_second_is_named_creep(tmp_path):
     late-share rule refused it ("a lag or rate dependence"), and a rate dependence that
     gained 15 % was named.  Nothing that acts faster explains half as much: it is a creep of
     tenths of a second.  Fails with ``CREEP_FAST_RIVAL = 0`` (verdict ``rate_dependence``)."""
-    from _paths import blind_case
-    from preisach.identify import identify
+    from _paths import blind_identified
 
-    case, forms = blind_case(tmp_path, 74, 17)
+    forms, model, ident, recs = blind_identified(tmp_path, 74, 17)
     assert forms == ["kelvin_voigt_chain"]
-    ident = Recording.load(case / "id.csv")
-    recs = [Recording.load(p) for p in sorted(case.glob("exp*.csv"))]
-    model = identify([ident], progress=False).model
     rep = diagnose(
         model,
         recs,
