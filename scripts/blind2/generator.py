@@ -1047,6 +1047,7 @@ def write_csv(path, u, y):
 def make_case(args):
     idx, kinds, forms, seed, outdir = args[:5]
     cml = bool(args[5]) if len(args) > 5 else False
+    clean = bool(args[6]) if len(args) > 6 else False
     t0 = time.time()
     rng = np.random.default_rng(seed)
     base = draw_base(rng, forms)
@@ -1120,6 +1121,17 @@ def make_case(args):
                                if len(effects) > 1 else per_file[cname] for e in effects}
         clipped[cname] = int(np.sum(np.abs(yn) >= 10.0 - QSTEP))
         files_out, n_session = files + [cfile], len(ux)
+    if clean:
+        # noiseless outputs with and without the effects, per file (no random draw)
+        arrs = {}
+        for name, s0, n in files:
+            sl = slice(s0, s0 + n)
+            arrs[name + ":u"], arrs[name + ":y"], arrs[name + ":y0"] = u[sl], yfin[sl], ybase[sl]
+        if cml:
+            _, s0, n = cfile
+            sl = slice(s0, s0 + n)
+            arrs[cname + ":u"], arrs[cname + ":y"], arrs[cname + ":y0"] = ux[sl], yfx[sl], ybx[sl]
+        np.savez_compressed(os.path.join(outdir, "truth", "case_%03d_clean.npz" % idx), **arrs)
     m = case.mask
     truth = {
         "case": "case_%03d" % idx,
@@ -1162,20 +1174,17 @@ def case_plan(n_per_kind, rng):
     return [specs[i] for i in order]
 
 
-def case_jobs(outdir, n_per_kind, seed, cml=False):
+def case_jobs(outdir, n_per_kind, seed, cml=False, clean=False):
     """The make_case argument tuples of one run, in case order."""
     plan = case_plan(n_per_kind, np.random.default_rng(seed))
     seeds = np.random.SeedSequence(seed).spawn(len(plan))
-    jobs = [(i, ks, fs, int(seeds[i].generate_state(1)[0]), outdir)
+    return [(i, ks, fs, int(seeds[i].generate_state(1)[0]), outdir, cml, clean)
             for i, (ks, fs) in enumerate(plan)]
-    if cml:
-        jobs = [j + (True,) for j in jobs]
-    return jobs
 
 
-def generate(outdir, n_per_kind, seed, workers, cml=False):
+def generate(outdir, n_per_kind, seed, workers, cml=False, clean=False):
     os.makedirs(os.path.join(outdir, "truth"), exist_ok=True)
-    jobs = case_jobs(outdir, n_per_kind, seed, cml)
+    jobs = case_jobs(outdir, n_per_kind, seed, cml, clean)
     t0 = time.time()
     if workers > 1:
         from multiprocessing import Pool
@@ -1300,12 +1309,16 @@ def main():
                     help="add a congruent-minor-loop experiment expN_cml.csv to every "
                          "case, recorded after the other experiments (other files "
                          "unchanged; see the module docstring)")
+    ap.add_argument("--clean", action="store_true",
+                    help="also write truth/case_NNN_clean.npz: every file's input and "
+                         "noiseless output with ('FILE:y') and without ('FILE:y0') the "
+                         "effects (no random draw added: the CSV files are unchanged)")
     a = ap.parse_args()
     if a.self_test:
         sys.exit(0 if self_test() else 1)
     if not a.outdir:
         ap.error("OUTDIR required")
-    generate(a.outdir, a.cases_per_kind, a.seed, a.workers, cml=a.cml)
+    generate(a.outdir, a.cases_per_kind, a.seed, a.workers, cml=a.cml, clean=a.clean)
 
 
 if __name__ == "__main__":

@@ -911,10 +911,11 @@ def _classical_curve(
 def _loop_congruency(ctx: Context, check: dict[str, Any], curves: list[np.ndarray]) -> EffectReport:
     """Name minor loops between the same inputs that differ in shape or height (non-congruence).
 
-    When nothing was kept, the fine classical model of the resolution check is within the
-    noise bound and neither a curve of the output nor a drift adds to it, the recordings'
-    comparable minor loops - the congruent-minor-loop experiment repeats one at two output
-    levels - are compared with no model at all
+    When nothing was kept and the fine classical model of the resolution check is within
+    the noise bound with neither a curve of the output nor a drift adding to it, or is above
+    that bound (no resolution makes loops congruent), the recordings' comparable minor
+    loops - the congruent-minor-loop experiment repeats one at two output levels - are
+    compared with no model at all
     (:func:`~preisach.diagnose.congruency.minor_loop_check`): a classical Preisach model's
     loops between the same inputs differ by a vertical shift only, however the weights are
     refitted, and have the same height wherever their output level.  A refit that absorbs a
