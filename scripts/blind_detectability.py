@@ -81,13 +81,13 @@ def _recordings(clean: Any, key: str) -> tuple[list[Recording], list[Recording]]
 def oracle(model_path: Path, clean_path: Path, sigma: float) -> dict[str, float]:
     """Fine classical ratios of the noiseless outputs with (``ratio``) and without (``floor``)."""
     model = load_model(str(model_path))
-    clean = np.load(clean_path)
     out: dict[str, float] = {}
-    for key, label in (("y", "ratio"), ("y0", "floor")):
-        exps, ident = _recordings(clean, key)
-        recs = prepare_recordings(model, exps, identification=ident)
-        ctx = Context(model, recs, refit=True)
-        out[label] = classical_check(ctx, sigma).ratio
+    with np.load(clean_path) as clean:
+        for key, label in (("y", "ratio"), ("y0", "floor")):
+            exps, ident = _recordings(clean, key)
+            recs = prepare_recordings(model, exps, identification=ident)
+            ctx = Context(model, recs, refit=True)
+            out[label] = classical_check(ctx, sigma).ratio
     out["excess"] = math.sqrt(max(out["ratio"] ** 2 - out["floor"] ** 2, 0.0))
     return out
 

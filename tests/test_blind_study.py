@@ -65,3 +65,33 @@ def test_a_miss_is_listed_with_the_truths_best_fit_at_step_one() -> None:
     assert "the truth's best fit: non_congruence/output_curve 1.4 % (p 0.026)" in lines[at + 1]
     assert text.count("the truth's best fit") == 1  # not for a hit, nor without a table
     assert "effect cases: right 1/3" in text
+
+
+def test_the_noiseless_outputs_measure_what_the_cml_loops_carry(tmp_path) -> None:
+    """``generator.py --clean`` adds the noiseless outputs and changes no CSV file; on them
+    ``blind_detectability.cml_shape`` is 0 for every congruent output and well above the
+    noise for seed 81's state-dependent reversible response (case 011, named from its loops).
+    Fails when ``--clean`` draws from the case's random stream, or the loops are compared
+    out of phase (loop B runs low -> high -> low, A and C high -> low -> high)."""
+    import json
+
+    import numpy as np
+
+    gen = script_module("blind2/generator.py", "blind2_generator")
+    bd = script_module("blind_detectability.py", "blind_detectability")
+    for sub, clean in (("plain", False), ("clean", True)):
+        (tmp_path / sub / "truth").mkdir(parents=True)
+        gen.make_case(gen.case_jobs(str(tmp_path / sub), 3, 81, cml=True, clean=clean)[11])
+    files = sorted(p.name for p in (tmp_path / "plain" / "case_011").glob("*.csv"))
+    assert files and all(
+        (tmp_path / "plain" / "case_011" / f).read_bytes()
+        == (tmp_path / "clean" / "case_011" / f).read_bytes()
+        for f in files
+    ), files
+    truth = json.loads((tmp_path / "clean" / "truth" / "case_011.json").read_text())
+    assert truth["forms"][0]["form"] == "state_dependent_reversible", truth["forms"]
+    with np.load(tmp_path / "clean" / "truth" / "case_011_clean.npz") as cl:
+        assert {f"{f}:{k}" for f in files for k in ("u", "y", "y0")} == set(cl.files)
+        sigma = truth["noise_rms"]
+        assert bd.cml_shape(cl, truth, sigma, "y0") < 1e-9
+        assert bd.cml_shape(cl, truth, sigma, "y") > bd.LOOPS_VISIBLE

@@ -204,11 +204,12 @@ TEST_CASE("real-time budget: a stall of many periods aborts, a lone late sample 
     CHECK(res.samples < 200);
     std::remove(opt.path.c_str());
 
-    // The same stall with the in-a-row budget off and a total budget of 100 completes; every
-    // miss is still counted.
+    // The same stall with the in-a-row budget off and a total budget of the trial's length
+    // completes; every miss is still counted.  (A budget of 100 aborted once on a machine
+    // running four other jobs on its two cores: 101 misses, the stall's 40 and the load's.)
     Safety lenient;
     lenient.max_consecutive_missed = -1;
-    lenient.max_missed_deadlines = 100;
+    lenient.max_missed_deadlines = 200;
     auto ctl2 = stall(30, 40);
     const auto res2 = runner.run(rig, ctl2, opt, lenient);
     CHECK(res2.end_status == "complete");

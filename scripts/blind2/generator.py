@@ -5,7 +5,7 @@ Written from physical descriptions only (see README.md next to this file).
 Only numpy and scipy are used.
 
 Usage:
-    python3 generator.py OUTDIR --cases-per-kind N --seed S [--cml]
+    python3 generator.py OUTDIR --cases-per-kind N --seed S [--cml] [--clean]
     python3 generator.py --self-test
 
 --cml  adds one more experiment file per case, expN_cml.csv (N = highest

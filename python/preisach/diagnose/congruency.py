@@ -41,9 +41,11 @@ spends one parameter where the shape test spends one per spline coefficient, so 
 non-congruences show; a drift or creep changes a loop along its branches in time, rarely by
 its height alone, so the height is named only when it makes most of the shape difference
 (:data:`LOOP_SCALE_SHARE`).  Measured with the given models on the seen blind cases of seeds
-27-34 (208 cases with CML recordings; docs/diagnosis.md section 5q): no null passes either
-test (height p >= 0.089 over 24); 25 of the 36 cases that carry a non-congruence pass, 19 by
-their shape - the height adds six, and no case of another kind; where a creep or a drift
+27-34 (208 cases with CML recordings; docs/diagnosis.md section 5q), with splines of one
+interval per 160 samples (since made finer, :data:`LOOP_MAX_INTERVALS`; section 5zh): no
+null passes either test (height p >= 0.089 over 24); 25 of the 36 cases that carry a
+non-congruence pass, 19 by their shape - the height adds six, and no case of another kind;
+where a creep or a drift
 made the height significant it made 2-32 % of the shape difference, two flicker drifts 51
 and 65 % (both passed by their shape anyway).
 """
@@ -109,7 +111,8 @@ LOOP_MIN_SHAPE = 0.3
 #: (:meth:`MinorLoopCheck.hints`): not named, and not said to agree.  Blind seed 65's
 #: electrostrictive case 016 (8.9 x the noise) had heights at p 0.0013 and was reported as
 #: loops that "agree"; the nulls' height p were at least 0.089 on seeds 27-34 and 0.035 on
-#: seed 65.
+#: seed 65 with the coarser splines of the time, and at least 0.0015 (65/020, now a hint) over
+#: the 48 nulls of seeds 65-80 with :data:`LOOP_MAX_INTERVALS`.
 LOOP_HINT_P = 0.01
 #: Least share of the loops' shape difference (beyond the noise's) a change of their height
 #: must make for :meth:`MinorLoopCheck.passes` to name it by the height test alone.
