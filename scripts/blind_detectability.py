@@ -21,7 +21,7 @@ leaves).  This script measures that part with the truth, not the diagnosis:
   not show an effect that a classical model cannot explain, and ``none`` is an honest verdict.
 
 The model file of each case (the eval's ``work/case_NNN/m.npz``) only sets the input range and
-the prior of the fine grid.  Usage::
+the prior of the fine grid.  Usage (with the package installed, or ``PYTHONPATH=python``)::
 
     python scripts/blind2/generator.py OUT --cases-per-kind 3 --seed S --cml --clean
     python scripts/blind_detectability.py OUT EVAL_DIR [--kinds non_congruence,sensor_drift]
@@ -37,17 +37,14 @@ import argparse
 import json
 import math
 import os
-import sys
 from pathlib import Path
 from typing import Any
 
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+if __name__ == "__main__":  # one BLAS thread, set before numpy loads (not when imported)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python"))
-
 from preisach.diagnose.augmented import load_model  # noqa: E402
 from preisach.diagnose.context import Context  # noqa: E402
 from preisach.diagnose.data import prepare_recordings  # noqa: E402
