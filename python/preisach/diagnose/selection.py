@@ -420,12 +420,12 @@ def _fast_creep(
     and 74/017, a Kelvin-Voigt creep with time constants of 0.25 and 0.28 s, whose creep fit
     gained 64 % and the best rival 15 % (a rate dependence, which was named).  An
     after-effect of tenths of a second is a creep no lag, delay or rate form reaches.  It is
-    named when
-    candidates of every kind in :data:`CREEP_FAST_RIVALS` were fitted in the step (checked by
-    the caller: a creep offered alone has nothing to be compared with), the step's best
-    qualifying rival gains less than :data:`CREEP_FAST_RIVAL` of ``gain``, at least
-    :data:`CREEP_FAST_MIN_SHARE` of every fold's fit moves later than 1 s (an after-effect
-    over in tens of ms is a lag whatever explains it), and the holds refute no fold's fit.
+    named when candidates of every kind in :data:`CREEP_FAST_RIVALS` were fitted in the step
+    (checked by the caller: a creep offered alone has nothing to be compared with), the
+    step's best qualifying rival gains less than :data:`CREEP_FAST_RIVAL` of ``gain``, at
+    least :data:`CREEP_FAST_MIN_SHARE` of every fold's fit moves later than 1 s (an
+    after-effect over in tens of ms is a lag whatever explains it), and the holds refute no
+    fold's fit.
     ``rival``: the step's best qualifying gain.  Returns the evidence in words, or None.
     """
     fits = fold_fits(cand, chains)
