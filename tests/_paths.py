@@ -4,7 +4,7 @@ They are never copied into the repository (see ``../shared/data/README.md`` for 
 tests that need them skip, naming this folder, when it does not hold them.  Also: a script of
 ``scripts/`` loaded as a module (:func:`script_module`), and a case of the blind generator
 written to disk (:func:`blind_case`), and read with its identified model
-(:func:`blind_identified`).
+(:func:`blind_identified`; the first generator's: :func:`blind1_identified`).
 """
 
 from __future__ import annotations
@@ -40,6 +40,25 @@ def blind_case(out: Path, seed: int, index: int) -> tuple[Path, list[str]]:
     (out / "truth").mkdir(parents=True, exist_ok=True)
     gen.make_case(job)
     return out / f"case_{index:03d}", list(job[2])
+
+
+def blind1_identified(
+    out: Path, kind: str, form: str, seed: int
+) -> tuple[dict[str, Any], Any, Any, list[Any]]:
+    """One case of the first blind generator (``scripts/blind``, written from physical
+    descriptions only by another helper), ``make_case(kind, form, seed)``, read as a user
+    would: its truth, the model identified from its ``id.csv``, that recording, and the
+    experiments (every other CSV file, in order)."""
+    from preisach import Recording
+    from preisach.identify import identify
+
+    gen = script_module("blind/blind_generator.py", "blind1_generator")
+    (out / "truth").mkdir(parents=True, exist_ok=True)
+    truth = gen.make_case(kind, form, seed, str(out), "case")
+    case = out / "case"
+    ident = Recording.load(case / "id.csv")
+    recs = [Recording.load(p) for p in sorted(case.glob("*.csv")) if p.name != "id.csv"]
+    return truth, identify([ident], progress=False).model, ident, recs
 
 
 def blind_identified(out: Path, seed: int, index: int) -> tuple[list[str], Any, Any, list[Any]]:

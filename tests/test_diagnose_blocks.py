@@ -24,15 +24,22 @@ from preisach.diagnose import (
     ReversibleRelaxation,
     SecondOrderMode,
     SensorDrift,
+    TwoModes,
 )
 from preisach.diagnose.effects import effect_from_dict
 
 DT = 1e-3
+#: Two modes, the second in antiphase (Hz, 1, 1).
+TWO_MODES = dict(
+    f_n=90.0, zeta=0.03, participation=0.25, f_n2=310.0, zeta2=0.008, participation2=-0.2
+)
 
 
 def _examples():
     return [
         SecondOrderMode(DT, f_n=37.62, zeta=0.02, participation=0.5),
+        SecondOrderMode(DT, f_n=264.0, zeta=0.01, participation=0.3, hold=1.6),
+        TwoModes(DT, **TWO_MODES, hold=2.0),
         PronyCreep(DT, taus=[0.02, 0.2, 2.0], weights=[0.01, 0.02, 0.005], gain=1.01),
         FractionalDelay(DT, tau=2.3e-3),
         LagrangeDelay(DT, tau=2.3e-3),
@@ -144,6 +151,39 @@ def test_a_mode_under_a_first_order_hold_is_its_response_to_the_input_linear_bet
     old = SecondOrderMode(DT, f_n=50.0, zeta=0.1, participation=0.4).to_dict()
     del old["params"]["hold"]
     assert effect_from_dict(old).params["hold"] == 0.0
+
+
+def test_a_mode_read_as_its_input_is_updated_is_the_zero_order_response_a_sample_later():
+    # hold 2: the reading taken as the input changes, before the mode has moved: the part
+    # through the mode is the zero-order-hold response one sample later, the rest is at once;
+    # between 1 and 2 the mix of the first-order and that response
+    x = np.r_[0.0, np.random.default_rng(4).standard_normal(399).cumsum()]
+    for f, z, m, r in ((120.0, 0.1, 0.3, 0.5), (337.0, 0.006, 0.2, 0.0)):
+        runs = []
+        for h in (0.0, 1.0, 2.0, 1.25):
+            b = SecondOrderMode(DT, f_n=f, zeta=z, participation=m, reaction=r, hold=h)
+            b.reset(0.0)
+            runs.append(b.run(x))
+        zoh, foh, late, mix = runs
+        through = 1.0 - m - r  # the part that passes at once: y = through x + (the mode's)
+        np.testing.assert_allclose(
+            late[1:] - through * x[1:], zoh[:-1] - through * x[:-1], rtol=0, atol=1e-9
+        )
+        np.testing.assert_allclose(mix, 0.75 * foh + 0.25 * late, rtol=0, atol=1e-9)
+        b = SecondOrderMode(DT, f_n=f, zeta=z, participation=m, reaction=r, hold=2.0)
+        assert b.reset(-0.4) == -0.4 and b.run(np.full(30, -0.4)) == pytest.approx(-0.4)
+
+
+@pytest.mark.parametrize("hold", [0.0, 0.5, 1.0, 2.0])
+def test_two_modes_are_the_sum_of_their_modes(hold):
+    # y = x + m1 (G1 x - x) + m2 (G2 x - x): the modal sum, participations of either sign
+    x = np.r_[np.zeros(5), np.random.default_rng(6).standard_normal(500).cumsum()]
+    both = TwoModes(DT, **TWO_MODES, hold=hold)
+    one = SecondOrderMode(DT, f_n=90.0, zeta=0.03, participation=0.25, hold=hold)
+    two = SecondOrderMode(DT, f_n=310.0, zeta=0.008, participation=-0.2, hold=hold)
+    for b in (both, one, two):
+        b.reset(0.0)
+    np.testing.assert_allclose(both.run(x), one.run(x) + two.run(x) - x, rtol=0, atol=1e-9)
 
 
 def test_structural_mode_rings_at_its_frequency():

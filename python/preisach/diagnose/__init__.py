@@ -41,6 +41,7 @@ from .effects import (
     SecondOrderMode,
     SensorDrift,
     SplineFeedback,
+    TwoModes,
 )
 from .locate import ResidualAnalysis, analyse_residuals
 from .registry import CANDIDATES, EFFECTS
@@ -71,6 +72,7 @@ __all__ = [
     "SensorDrift",
     "SplineFeedback",
     "SecondOrderMode",
+    "TwoModes",
     "analyse_residuals",
     "diagnose",
     "load_model",

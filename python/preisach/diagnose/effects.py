@@ -80,6 +80,7 @@ __all__ = [
     "ReversibleRelaxation",
     "SensorDrift",
     "SecondOrderMode",
+    "TwoModes",
     "FeedbackBlock",
     "SplineFeedback",
     "effect_from_dict",
@@ -374,6 +375,23 @@ def _mode_foh(wn: float, zeta: float, dt: float) -> tuple[Array, Array, Array]:
     return b, v, a
 
 
+def _mode_held(f_n: float, zeta: float, dt: float, hold: float) -> tuple[Array, Array, Array]:
+    """:func:`_mode_zoh` at ``f_n`` (Hz) under the hold ``hold`` (see :class:`SecondOrderMode`).
+
+    From 0 to 1 the mix ``(1 - hold) ZOH + hold FOH`` of the two discretisations
+    (:func:`_mode_foh`), from 1 to 2 the mix ``(2 - hold) FOH + (hold - 1) z^-1 ZOH``;
+    returns ``(b_G, b_V, a)`` as :func:`_mode_zoh` does.
+    """
+    b, v, a = _mode_zoh(2 * math.pi * f_n, zeta, dt)
+    if not hold:
+        return b, v, a
+    bf, vf, _ = _mode_foh(2 * math.pi * f_n, zeta, dt)
+    if hold <= 1.0:  # zero order (0) to first order (1)
+        return (1.0 - hold) * np.r_[b, 0.0] + hold * bf, (1.0 - hold) * np.r_[v, 0.0] + hold * vf, a
+    w = min(hold, 2.0) - 1.0  # first order (1) to the zero-order response a sample later (2)
+    return (1.0 - w) * bf + w * np.r_[0.0, b], (1.0 - w) * vf + w * np.r_[0.0, v], a
+
+
 class SecondOrderMode(_LinearFilter):
     """A lightly damped structural mode after the hysteresis (output side).
 
@@ -398,12 +416,16 @@ class SecondOrderMode(_LinearFilter):
     reaction : float, optional
         ``r`` (1); 0 when left out.
     hold : float, optional
-        How the block's input moves between its samples: 0 (default) held over the
-        interval that ends at its sample (zero-order hold, as the rig's ``StructuralMode``),
-        1 linear between its samples (first-order hold: input and output sampled at the
-        same instants, the input continuous); between, the mix of the two responses.  At
-        ``f_n`` the two differ by half a sample of phase (``pi f_n dt``: 48 degrees at
-        264 Hz sampled at 1 kHz), enough to hide a fast mode from a fit of the other.
+        How the block's input moves between its samples and when its output is read: 0
+        (default) held over the interval that ends at its sample (zero-order hold, as the
+        rig's ``StructuralMode``), 1 linear between its samples (first-order hold: input and
+        output sampled at the same instants, the input continuous), 2 held over the
+        interval that starts at its sample (the output read as the input is updated, before
+        the mode has moved: the zero-order response one sample later, while the part
+        that does not pass through the mode follows at once); between, the mix of the two
+        neighbouring responses.  Each step delays the ring by about half a sample of
+        phase (``pi f_n dt``: 48 degrees at 264 Hz sampled at 1 kHz), enough to hide a
+        fast mode from a fit under another.
 
     """
 
@@ -422,18 +444,59 @@ class SecondOrderMode(_LinearFilter):
     def _design(self) -> tuple[Array, Array, float]:
         p = self._params
         m, r = p["participation"], p["reaction"]
-        b, v, a = _mode_zoh(2 * math.pi * p["f_n"], p["zeta"], self.dt)
-        h = p["hold"]
-        if h:  # the input's hold between its samples: zero order (0) to first order (1)
-            bf, vf, _ = _mode_foh(2 * math.pi * p["f_n"], p["zeta"], self.dt)
-            b = (1.0 - h) * np.r_[b, 0.0] + h * bf
-            v = (1.0 - h) * np.r_[v, 0.0] + h * vf
+        b, v, a = _mode_held(p["f_n"], p["zeta"], self.dt, p["hold"])
         if r == 0.0:
             return b, a, m
         # y = x + (m + r) (G x - x) + r V x  (A = 1 - G - V), one filter with mix 1
         num = (1.0 - m - r) * a
         num[: b.size] += (m + r) * b + r * v
         return num, a, 1.0
+
+
+class TwoModes(_LinearFilter):
+    """Two structural modes after the hysteresis, superposed (output side).
+
+    ``y = x + m_1 (G_1 x - x) + m_2 (G_2 x - x)`` with ``G_k(s) = wn_k^2 / (s^2 + 2 zeta_k
+    wn_k s + wn_k^2)``: the modal sum of a structure read by a sensor away from the drive
+    (participations of either sign: a sensor not collocated with the actuator sees the
+    second mode in antiphase), each mode discretised as :class:`SecondOrderMode` with one
+    hold for both.  Unit DC gain.
+
+    Parameters
+    ----------
+    f_n, zeta, participation : float
+        First mode: natural frequency (Hz), damping ratio (1), participation ``m_1`` (1).
+    f_n2, zeta2, participation2 : float
+        Second mode, the same.
+    hold : float, optional
+        As :class:`SecondOrderMode` (0 to 2; 0, a zero-order hold, by default).
+
+    """
+
+    kind = "two_modes"
+    side = "output"
+    PARAMS = (
+        ("f_n", "Hz"),
+        ("zeta", ""),
+        ("participation", ""),
+        ("f_n2", "Hz"),
+        ("zeta2", ""),
+        ("participation2", ""),
+        ("hold", ""),
+    )
+    DOMAIN = {"f_n": ">0", "zeta": ">0", "f_n2": ">0", "zeta2": ">0"}
+    OPTIONAL = {"hold": 0.0}
+
+    def _design(self) -> tuple[Array, Array, float]:
+        p = self._params
+        b1, _, a1 = _mode_held(p["f_n"], p["zeta"], self.dt, p["hold"])
+        b2, _, a2 = _mode_held(p["f_n2"], p["zeta2"], self.dt, p["hold"])
+        n = max(b1.size, a1.size)  # both modes' taps padded alike: H = 1 + sum m_k (G_k - 1)
+        b1, a1, b2, a2 = (np.r_[c, np.zeros(n - c.size)] for c in (b1, a1, b2, a2))
+        num = np.convolve(a1, a2)
+        num += p["participation"] * np.convolve(b1 - a1, a2)
+        num += p["participation2"] * np.convolve(b2 - a2, a1)
+        return num, np.convolve(a1, a2), 1.0
 
 
 class PronyCreep(EffectBlock):
@@ -1102,6 +1165,7 @@ EFFECT_TYPES: dict[str, type[EffectBlock]] = {
     c.__name__: c
     for c in (
         SecondOrderMode,
+        TwoModes,
         PronyCreep,
         FractionalDelay,
         LagrangeDelay,

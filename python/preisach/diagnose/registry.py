@@ -24,6 +24,7 @@ from .candidates import (
     RateLagCandidate,
     RateWidthCandidate,
     RelaxationCandidate,
+    TwoModesCandidate,
     ViscousCandidate,
 )
 from .rate_family import RateFamilyCandidate
@@ -42,6 +43,7 @@ CANDIDATES: dict[str, type[Candidate]] = {
         ViscousCandidate,
         ModeCandidate,
         ModeReactionCandidate,
+        TwoModesCandidate,
         CreepCandidate,
         DelayCandidate,
         LagrangeDelayCandidate,
