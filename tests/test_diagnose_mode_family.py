@@ -163,7 +163,8 @@ def test_two_modes_read_as_the_input_is_updated_are_both_named(model):
     """One mode fitted to two lands on either or between them, and a mode read as its input
     is updated rings a sample later than under a zero- or first-order hold (121 degrees at
     337 Hz sampled at 1 kHz): generator-1 seed 90's case 001, two such modes, was
-    ``unexplained`` (the one-mode scan found 162 Hz, between them)."""
+    ``unexplained`` (the one-mode scan's best start in one fold was 162 Hz, 337 Hz's alias
+    on every fourth sample).  Fails with the hold limited to [0, 1] (one mode kept)."""
 
     def simulate(u: np.ndarray) -> np.ndarray:
         x = model.simulate(u, model.anhysteretic_state(), sample_time=DT).output
