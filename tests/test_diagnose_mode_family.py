@@ -11,6 +11,8 @@ the test, not with the package's block.
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -105,6 +107,21 @@ def test_a_mode_in_a_recoiling_frame_is_named_with_its_frequency(model):
     assert "reaction to the actuator's acceleration" in eff.statement
 
 
+def _blind_frame_mode(tmp_path: Path, seed: int, index: int) -> Any:
+    """Blind case ``index`` of ``seed`` (a frame-reaction mode), diagnosed with the resonance
+    forms from its identified model and sweep; the one effect, asserted named a resonance."""
+    from _paths import blind_identified
+
+    forms, model, ident, recs = blind_identified(tmp_path, seed, index)
+    assert forms == ["frame_reaction_mode"]
+    rep = diagnose(
+        model, recs, identification=[ident], candidates=["structural_resonance"], progress=False
+    )
+    assert rep.verdict == "structural_resonance", rep.summary()
+    (eff,) = rep.effects
+    return eff
+
+
 @pytest.mark.slow
 def test_a_lightly_damped_mode_between_the_scans_steps_is_found(tmp_path):
     """Blind seed 73's case 005 (scripts/blind2, written from physical descriptions only): a
@@ -113,15 +130,7 @@ def test_a_lightly_damped_mode_between_the_scans_steps_is_found(tmp_path):
     off (half the 6 % coarse step) projects it at almost nothing: from the coarse scan alone
     the best fit gained 5 % and the case was ``unexplained``.  The fine scan about the best
     coarse frequencies finds it.  Fails with ``REFINE_BEST = 0``."""
-    from _paths import blind_identified
-
-    forms, model, ident, recs = blind_identified(tmp_path, 73, 5)
-    assert forms == ["frame_reaction_mode"]
-    rep = diagnose(
-        model, recs, identification=[ident], candidates=["structural_resonance"], progress=False
-    )
-    assert rep.verdict == "structural_resonance", rep.summary()
-    (eff,) = rep.effects
+    eff = _blind_frame_mode(tmp_path, 73, 5)
     assert eff.parameters["f_n"]["value"] == pytest.approx(31.35, rel=0.005), eff.statement
     assert eff.parameters["zeta"]["value"] == pytest.approx(0.0063, rel=0.2), eff.statement
     assert eff.heldout_rmse_after < 0.5 * eff.heldout_rmse_before, eff.evidence
@@ -236,13 +245,5 @@ def test_a_mode_above_a_quarter_of_the_sample_rate_is_scanned_unaliased(tmp_path
     168 Hz and 82 Hz are one signal; no start came near 168 Hz and the case was
     ``unexplained`` (12 x the noise).  Scanned on every sample the fit uses, it is found.
     Fails with the scan on the coarse rows."""
-    from _paths import blind_identified
-
-    forms, model, ident, recs = blind_identified(tmp_path, 82, 5)
-    assert forms == ["frame_reaction_mode"]
-    rep = diagnose(
-        model, recs, identification=[ident], candidates=["structural_resonance"], progress=False
-    )
-    assert rep.verdict == "structural_resonance", rep.summary()
-    (eff,) = rep.effects
+    eff = _blind_frame_mode(tmp_path, 82, 5)
     assert eff.parameters["f_n"]["value"] == pytest.approx(168.05, rel=0.01), eff.statement
