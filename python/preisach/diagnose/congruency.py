@@ -117,6 +117,14 @@ LOOP_HINT_P = 0.01
 #: Least share of the loops' shape difference (beyond the noise's) a change of their height
 #: must make for :meth:`MinorLoopCheck.passes` to name it by the height test alone.
 LOOP_SCALE_SHARE = 0.5
+#: Smallest RMS height change (noise standard deviations, on loop B's samples) the height
+#: test names, and with which the heights carry the joint test
+#: (:meth:`MinorLoopCheck.joint_carried`).  Thousands of loop samples resolve a height change
+#: far below anything that matters: blind seed 82's case 018 (a Debye relaxation, which keeps
+#: loops congruent) had heights at p 0.00074 changing by 0.054 x the noise and was named
+#: ``non_congruence``.  The 14 non-congruences of seen blind seeds 66-83 named by their
+#: heights changed them by 0.080-0.29 x (docs/diagnosis.md, section 5zj).
+LOOP_MIN_HEIGHT = 0.07
 #: Most knot intervals of a loop branch's spline (:func:`loop_shapes`, one per ``min_samples``
 #: samples).  The residual against a model on a grid of input levels bends at every level;
 #: a spline too coarse to follow it leaves that misfit in the own-shape residual, the
@@ -403,7 +411,9 @@ class MinorLoopCheck:
     (one coefficient for all pairs, as a static curve of the output makes to first order);
     ``height_p`` its two-sided p-value; ``height_share`` (0 to 1) the share of the shape
     differences beyond the noise's that the change of height makes (1 when the shape test
-    sees less beyond the noise than the height alone).  ``curve_p``, ``curve_gain``: the
+    sees less beyond the noise than the height alone); ``height_rms`` (V) the height change's
+    RMS on loop B's samples (the fitted coefficient times each pair's level difference and
+    shape).  ``curve_p``, ``curve_gain``: the
     sign-flip p and the gain (noise variances) of the static output curve beyond the fine
     classical model (:func:`output_curve_check`), when that test ran on the same recordings
     (None if not).
@@ -419,6 +429,7 @@ class MinorLoopCheck:
     height_sd: float = float("inf")
     height_p: float = 1.0
     height_share: float = 0.0
+    height_rms: float = 0.0
     curve_p: float | None = None
     curve_gain: float | None = None
 
@@ -439,20 +450,21 @@ class MinorLoopCheck:
         """Name the tests by which the loops are not congruent: ``shape``, ``height``, ``joint``.
 
         The shape test: p < ``alpha`` and a shape difference of ``min_shape`` noise SDs.  The
-        height test: p < ``alpha`` and at least :data:`LOOP_SCALE_SHARE` of the shape
+        height test: p < ``alpha``, at least :data:`LOOP_SCALE_SHARE` of the shape
         differences beyond the noise's made by the loops' heights changing with their output
-        level - the difference a non-congruence makes, told with one parameter where the shape
-        test spends one per spline coefficient, so smaller ones show; a drift or creep
-        changes a loop's shape in time and rarely its height alone.  The joint test: the height
-        test's share met, :meth:`joint_p` below :data:`LOOP_JOINT_ALPHA`, and one of the two
-        tests carrying evidence of its own (:meth:`joint_carried`).
+        level, and a change of at least :data:`LOOP_MIN_HEIGHT` noise SDs RMS - the
+        difference a non-congruence makes, told with one parameter where the shape test
+        spends one per spline coefficient, so smaller ones show; a drift or creep changes a
+        loop's shape in time and rarely its height alone.  The joint test: the height test's
+        share met, :meth:`joint_p` below :data:`LOOP_JOINT_ALPHA`, and one of the
+        two tests carrying evidence of its own (:meth:`joint_carried`).
         """
         if not self.pairs:
             return []
         share = self.height_share >= LOOP_SCALE_SHARE
         tests = {
             "shape": self.p < alpha and self.shape_rms >= min_shape * self.sigma,
-            "height": share and self.height_p < alpha,
+            "height": share and self.height_p < alpha and self._height_sized(),
             "joint": self._joint_below() and self.joint_carried(),
         }
         return [name for name, found in tests.items() if found]
@@ -464,15 +476,21 @@ class MinorLoopCheck:
             self.height_share >= LOOP_SCALE_SHARE and joint is not None and joint < LOOP_JOINT_ALPHA
         )
 
+    def _height_sized(self) -> bool:
+        """Whether the height change is at least :data:`LOOP_MIN_HEIGHT` noise SDs (RMS)."""
+        return self.height_rms >= LOOP_MIN_HEIGHT * self.sigma
+
     def joint_carried(self) -> bool:
         """Whether one of the joint test's two parts carries evidence of its own.
 
-        The heights at :data:`LOOP_HINT_P`, or the output curve's gain at least
-        :data:`LOOP_JOINT_CURVE_GAIN`: a curve's small p at a gain far below anything physical
-        (long recordings resolve the fine model's last per-mille) is not half of a finding.
+        The heights at :data:`LOOP_HINT_P` with a change of at least :data:`LOOP_MIN_HEIGHT`
+        noise SDs, or the output curve's gain at least :data:`LOOP_JOINT_CURVE_GAIN`: a small
+        p at a size far below anything physical (many loop samples, or long recordings that
+        resolve the fine model's last per-mille) is not half of a finding.
         """
         gain = self.curve_gain
-        return self.height_p < LOOP_HINT_P or (gain is not None and gain >= LOOP_JOINT_CURVE_GAIN)
+        heights = self.height_p < LOOP_HINT_P and self._height_sized()
+        return heights or (gain is not None and gain >= LOOP_JOINT_CURVE_GAIN)
 
     def passes(self, alpha: float = LOOP_ALPHA, min_shape: float = LOOP_MIN_SHAPE) -> bool:
         """Whether the loops are not congruent by any test of :meth:`found_by`."""
@@ -484,9 +502,10 @@ class MinorLoopCheck:
         Loops that differ that much are too weak evidence to name a non-congruence, and too
         strong to be said to agree - also when a test is below its own bar but its size is
         not (a shape difference under :data:`LOOP_MIN_SHAPE`, heights that make less than
-        :data:`LOOP_SCALE_SHARE` of it): blind seed 78's moving model 024 had heights at p
-        5e-5 making 36 % of the shape difference and was said to "agree".  Empty when the
-        loops are named and when neither p is below :data:`LOOP_HINT_P`.
+        :data:`LOOP_SCALE_SHARE` of it or change by less than :data:`LOOP_MIN_HEIGHT`):
+        blind seed 78's moving model 024 had heights at p 5e-5 making 36 % of the shape
+        difference and was said to "agree".  Empty when the loops are named and when neither
+        p is below :data:`LOOP_HINT_P`.
         """
         if self.passes() or not self.pairs:
             return []
@@ -534,6 +553,7 @@ class MinorLoopCheck:
             "height_sd": self.height_sd if self.pairs else None,
             "height_p": self.height_p,
             "height_share": self.height_share,
+            "height_noise_ratio": self.height_rms / self.sigma if self.sigma > 0 else None,
             "curve_p": self.curve_p,
             "curve_gain": self.curve_gain,
             "joint_p": self.joint_p(),
@@ -551,7 +571,12 @@ def loop_difference_text(lc: dict[str, Any], unit: str = "V", bars: bool = False
     unit (the height changes per unit of output level); ``bars``: state each test's bar.
     """
     shape_bar = f"; bar p < {LOOP_ALPHA:g} and {LOOP_MIN_SHAPE:g} x the noise" if bars else ""
-    height_bar = f"; bar p < {LOOP_ALPHA:g} and {100 * LOOP_SCALE_SHARE:.0f} %" if bars else ""
+    height_bar = (
+        f"; bar p < {LOOP_ALPHA:g}, {100 * LOOP_SCALE_SHARE:.0f} % and {LOOP_MIN_HEIGHT:g} x "
+        "the noise"
+        if bars
+        else ""
+    )
     joint = lc.get("joint_p")
     joint_text = (
         f", and with the static output curve beyond the fine model (p = {lc['curve_p']:.2g}) "
@@ -567,8 +592,14 @@ def loop_difference_text(lc: dict[str, Any], unit: str = "V", bars: bool = False
         f"{shape_bar}) and in height by {100 * lc['height_per_volt']:+.3g} +/- "
         f"{100 * lc['height_sd']:.2g} % per {unit} of output level (p = "
         f"{lc['height_p']:.2g}, {100 * lc['height_share']:.0f} % of the shape "
-        f"difference{height_bar}){joint_text}"
+        f"difference, {_height_size(lc)}{height_bar}){joint_text}"
     )
+
+
+def _height_size(lc: dict[str, Any]) -> str:
+    """Say the height change's RMS in noise SDs (from :meth:`MinorLoopCheck.as_dict`)."""
+    ratio = lc.get("height_noise_ratio")
+    return "size not known" if ratio is None else f"{ratio:.2g} x the noise RMS"
 
 
 def repeated_loops_text(lc: dict[str, Any], unit: str = "V") -> str:
@@ -584,14 +615,14 @@ def repeated_loops_text(lc: dict[str, Any], unit: str = "V") -> str:
             f"({lc['shape_noise_ratio']:.2g} x the noise; p = {lc['p']:.2g})",
             "height": f"in height by {100 * lc['height_per_volt']:+.3g} +/- "
             f"{100 * lc['height_sd']:.2g} % per {unit} of output level "
-            f"(p = {lc['height_p']:.2g})",
+            f"({_height_size(lc)}; p = {lc['height_p']:.2g})",
         }
         return (
             f"{lc['pairs']} pair(s) of repeated minor loops differ "
             f"{' and '.join(parts[t] for t in lc['hints'])}, short of the bar that names "
             f"them (p < {LOOP_ALPHA:g} with a shape difference of at least {LOOP_MIN_SHAPE:g} "
             f"x the noise, or heights that make at least {100 * LOOP_SCALE_SHARE:.0f} % of "
-            "it), so not named - "
+            f"it and change by at least {LOOP_MIN_HEIGHT:g} x the noise), so not named - "
             "a weak non-congruence (or a sensor reading through a nonlinear curve) may be "
             "there; the same minor loop repeated more often, or at output levels further "
             "apart, would decide"
@@ -681,8 +712,11 @@ def pooled_loop_check(pairs: list[tuple[int, LoopShape]], sigma: float) -> Minor
         # all of it when the shape test sees less than the height alone
         height = zt * zt - 1.0
         share = height / max(num / s2 - q, height) if height > 0 else 0.0
+        # the height change's RMS on loop B's samples (V)
+        n_b = sum(pr.samples_b.size for _, pr in pairs)
+        h_rms = abs(kappa) * math.sqrt(w / max(n_b, 1))
     else:
-        kappa, sd, hp, share = 0.0, float("inf"), 1.0, 0.0
+        kappa, sd, hp, share, h_rms = 0.0, float("inf"), 1.0, 0.0, 0.0
     return MinorLoopCheck(
-        pairs, float(F), (int(q), int(dof2)), p, rms, float(sigma), kappa, sd, hp, share
+        pairs, float(F), (int(q), int(dof2)), p, rms, float(sigma), kappa, sd, hp, share, h_rms
     )
