@@ -43,7 +43,7 @@ def blind_case(out: Path, seed: int, index: int) -> tuple[Path, list[str]]:
 
 
 def blind1_identified(
-    out: Path, kind: str, form: str, seed: int
+    out: Path, kind: str | list[str], form: str | list[str | None] | None, seed: int
 ) -> tuple[dict[str, Any], Any, Any, list[Any]]:
     """One case of the first blind generator (``scripts/blind``, written from physical
     descriptions only by another helper), ``make_case(kind, form, seed)``, read as a user

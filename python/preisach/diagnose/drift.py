@@ -328,8 +328,14 @@ def drift_hold_check(ctx: Context, chain: Chain, settle: float = 0.25) -> HoldCh
     return hold_check(data, ctx.u_span, settle)
 
 
-def drift_refuted_by_holds(ctx: Context, chains: list[Chain], sigma: float) -> str | None:
-    """Why the fitted drift of any of ``chains`` is not a drift by the holds (or None)."""
+def drift_refuted_by_holds(
+    ctx: Context, chains: list[Chain], sigma: float
+) -> tuple[str | None, bool]:
+    """Why the fitted drift of any of ``chains`` is not a drift by the holds (or None).
+
+    Also returns whether the reason is that the drift curve follows the input steps
+    (a creep beside it may have made it do so: ``selection._drift_beside_creep``).
+    """
     for ch in chains:
         hc = drift_hold_check(ctx, ch)
         if hc.n_holds >= 3 and hc.follows_t >= FOLLOWS_T_MAX:
@@ -338,12 +344,12 @@ def drift_refuted_by_holds(ctx: Context, chains: list[Chain], sigma: float) -> s
                 f"the output's move into each hold (t = {hc.follows_t:.2g} >= "
                 f"{FOLLOWS_T_MAX:g}): it follows the input steps, as creep does, not a sensor "
                 "drift"
-            )
+            ), True
         if hc.refutes(sigma):
             return (
                 f"the drift curve moves by {amount_text(hc.drift_motion, ctx.output_unit, '.2g')} "
                 f"(RMS) over {hc.n_holds} input holds where the measured output moves by "
                 f"{100 * hc.share:.2g} ± {100 * hc.se:.2g} % of that: a model error that "
                 "changes with the input steps, smoothed into a curve, not a sensor drift"
-            )
-    return None
+            ), False
+    return None, False
