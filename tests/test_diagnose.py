@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -23,6 +24,7 @@ from preisach.diagnose import (
 )
 from preisach.diagnose.cli import add_parser
 from preisach.diagnose.data import prepare_recordings
+from preisach.diagnose.scoring import nameable_rms
 from preisach.studies.diagnosis_cases import make_case
 from scipy import signal
 
@@ -80,7 +82,10 @@ def test_json_has_exactly_the_issue_schema(delay_report, tmp_path):
         "holds",
         "loops_beside",
         "consistent",
+        "nameable",
     }
+    assert set(d["noise_test"]["nameable"]) == {"rms", "ratio", "statement"}
+    assert "further effect" in d["noise_test"]["nameable"]["statement"]  # one was kept
     assert d["noise_test"]["holds"] is None  # an effect was kept: no hold test
     beside = d["noise_test"]["loops_beside"]  # an effect was kept: the loops read beside it
     assert beside is not None and "non_congruence" not in [e["name"] for e in d["effects"]]
@@ -323,6 +328,38 @@ def test_effect_outside_every_candidate_is_unexplained_not_none():
     m, clean = _recs_with("none")
     rep0 = diagnose(m, clean, candidates=["delay", "gain_offset", "creep"])
     assert rep0.verdict == "none" and rep0.noise_test["consistent"] and rep0.unexplained is None
+
+
+def test_a_verdict_without_effects_says_the_smallest_effect_it_could_name():
+    """The limit is the selection's own gain and noise bars, read back from the candidate table.
+
+    A 37 Hz pickup of 5 x the noise that no candidate offered can fit: ``unexplained``.  Every
+    candidate of the last step explained a part ``sqrt(baseline^2 - heldout^2)`` of the
+    held-out residual; exactly those whose part reaches ``noise_test.nameable.rms`` passed
+    both bars.  Fails when the limit or its note is dropped, or drifts from the bars.
+    """
+    m, recs = _recs_with("none")
+    for r in recs:
+        r.y[:] = r.y + 5e-3 * np.sign(np.sin(2 * np.pi * 37.0 * r.t))
+    rep = diagnose(m, recs, candidates=["delay", "gain_offset", "creep"], progress=False)
+    assert rep.verdict == "unexplained"
+    nt = rep.noise_test
+    lim = nt["nameable"]
+    assert lim["rms"] == pytest.approx(math.sqrt(1 - 0.9**2) * rep.rmse_after, rel=1e-9)
+    assert lim["ratio"] == pytest.approx(lim["rms"] / rep.noise_sigma)
+    assert lim["ratio"] > 1.5  # the gain bar, not the noise bar, sets it here
+    assert lim["statement"] in rep.notes and "is not excluded" in lim["statement"]
+    last = max(row["step"] for row in rep.candidates)
+    rows = [row for row in rep.candidates if row["step"] == last]
+    assert rows and all(row["baseline_rmse"] == pytest.approx(rep.rmse_after) for row in rows)
+    for row in rows:
+        part = math.sqrt(max(row["baseline_rmse"] ** 2 - row["heldout_rmse"] ** 2, 0.0))
+        passed = row["gain"] >= 0.10 and row["explained_noise_variances"] >= 1.0
+        assert (part >= lim["rms"]) == passed, row
+    # a residual within one noise variance of nothing: no effect could pass
+    assert nameable_rms(0.9e-3, 1e-3, 0.10, 1.0) == pytest.approx(1e-3)
+    assert nameable_rms(10e-3, 1e-3, 0.10, 1.0) == pytest.approx(10e-3 * math.sqrt(0.19))
+    assert json.loads(rep.to_json())["noise_test"]["nameable"]["rms"] == pytest.approx(lim["rms"])
 
 
 def test_unexplained_names_the_nearest_fit_and_why_it_was_not_named():

@@ -46,7 +46,7 @@ from .report import (
     unexplained_of,
     where_of,
 )
-from .scoring import Score, sign_flip_p
+from .scoring import Score, nameable_rms, sign_flip_p
 from .selection import (
     RESOLUTION_BEYOND_CLASSICAL,
     GridChoice,
@@ -436,6 +436,8 @@ def diagnose(
         time.perf_counter() - t_start,
         grid,
         alpha,
+        min_gain,
+        noise_factor,
     )
     if progress:
         progress(f"verdict: {report.verdict} ({report.seconds:.1f} s)")
@@ -1062,6 +1064,51 @@ def _unknown_start_note(
     )
 
 
+def _nameable(
+    rmse: float,
+    sigma: float,
+    min_gain: float,
+    noise_factor: float,
+    alpha: float,
+    further: bool,
+    refit: bool,
+    ctx: Context,
+) -> dict[str, Any]:
+    """Return the smallest effect the selection could have named beside the final model.
+
+    ``rmse`` is the final held-out RMSE (V), ``sigma`` the noise; see
+    :func:`~preisach.diagnose.scoring.nameable_rms`.  ``further``: effects were kept (the
+    limit is then a further effect's).  Returns ``rms`` (V), ``ratio`` (to the noise) and
+    ``statement``.  A "none" at several times the noise does not say that no effect is
+    there: a refit of the weights absorbs part of most effects, and what is left must pass
+    these bars on held-out data.
+    """
+    e = nameable_rms(rmse, sigma, min_gain, noise_factor)
+    unit = ctx.output_unit
+    ratio = e / sigma if sigma > 0 else float("inf")
+    which = "a further effect" if further else "an effect"
+    if e >= rmse:
+        text = (
+            f"the held-out residual ({amount_text(rmse, unit, '.3g')}) is too small for "
+            f"{which} to lower it by {100 * min_gain:.0f} % and {noise_factor:g} noise "
+            "variance: these recordings could name no more"
+        )
+    else:
+        left = (
+            "leaves less than that beside the weights refitted with it"
+            if refit
+            else "is smaller than that"
+        )
+        text = (
+            f"smallest {which.split(' ', 1)[1]} these recordings could name: one that explains "
+            f"{amount_text(e, unit, '.3g')} RMS of the held-out residual "
+            f"({ratio:.2g} x the noise; {100 * min_gain:.0f} % of its "
+            f"{amount_text(rmse, unit, '.3g')} and {noise_factor:g} noise variance, at "
+            f"p < {alpha:g}); {which} that {left} is not excluded"
+        )
+    return {"rms": e, "ratio": ratio, "statement": text}
+
+
 def _report(
     model: PreisachModel,
     ctx: Context,
@@ -1073,11 +1120,14 @@ def _report(
     seconds: float,
     grid: dict[str, Any] | None = None,
     alpha: float = 0.01,
+    min_gain: float = 0.10,
+    noise_factor: float = 1.0,
 ) -> DiagnosisReport:
     """Build the augmented model, the residual analyses, the noise test and the report.
 
     ``grid`` is the base choice of :func:`~preisach.diagnose.selection.choose_grid`;
-    ``alpha`` the selection's significance level (for the holds' wander).
+    ``alpha``, ``min_gain`` and ``noise_factor`` the selection's bars (for the holds' wander
+    and the smallest effect that could be named, :func:`_nameable`).
     """
     recs, diag, steps, kept = ctx.recs, ctx.diag, sel.steps, sel.kept
     names, chain = final.names, final.chain
@@ -1181,6 +1231,9 @@ def _report(
         "holds": None if motion is None else motion.as_dict(),
         "loops_beside": loops_beside,
         "consistent": consistent,
+        "nameable": _nameable(
+            rmse_after, sigma_hat, min_gain, noise_factor, alpha, bool(names), do_refit, ctx
+        ),
     }
     unexplained = None
     if not consistent:
@@ -1223,6 +1276,8 @@ def _report(
             "two output levels (a CML experiment: up to high, down to low, up to high, then "
             "past high to a peak and back through the same loop)"
         )
+    if verdict in ("none", "unexplained"):
+        notes.append(noise_test["nameable"]["statement"])
     if sel.refit_baseline is not None:
         notes.append(
             f"base refitted with every candidate; refitted base alone: held-out RMSE "

@@ -126,8 +126,12 @@ class DiagnosisReport:
         ``loops_beside`` (None, or when effects other than ``non_congruence`` were kept: the
         repeated minor loops compared against their prediction, as ``minor_loops`` with
         ``moves``, whether the holds moved; a note, naming no effect, says so when its height
-        test passes and the holds do not move) and ``consistent`` (``ratio <=
-        threshold``, or the classical check's verdict).
+        test passes and the holds do not move), ``consistent`` (``ratio <=
+        threshold``, or the classical check's verdict) and ``nameable``: ``rms`` (V) and
+        ``ratio`` of the smallest part of the held-out residual an effect (a further one when
+        effects were kept) must explain to pass the selection's gain and noise bars, with a
+        ``statement`` (a note on ``none`` and ``unexplained``: smaller effects are not
+        excluded).
     unexplained : dict or None
         When the final held-out residual is above ``threshold`` times the noise: ``ratio``,
         ``statement`` (the localisation in words), ``where`` (recordings, input range,

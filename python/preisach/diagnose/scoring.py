@@ -25,6 +25,7 @@ __all__ = [
     "fine_system",
     "heldout_score",
     "make_folds",
+    "nameable_rms",
     "sign_flip_p",
 ]
 
@@ -115,6 +116,21 @@ def sign_flip_p(d: Array, n_perm: int = 4000, seed: int = 0) -> float:
     signs = rng.choice([-1.0, 1.0], size=(n_perm, d.size))
     null = (signs * np.abs(d)).mean(axis=1)
     return float((1 + np.count_nonzero(null >= obs)) / (n_perm + 1))
+
+
+def nameable_rms(rmse: float, sigma: float, min_gain: float, noise_factor: float) -> float:
+    """Smallest RMS (V) of held-out residual an effect must explain to pass the selection's bars.
+
+    An effect whose fit removes a part of RMS ``e`` from a held-out residual of RMS ``rmse``
+    leaves ``sqrt(rmse**2 - e**2)``: it lowers the held-out RMSE by ``min_gain`` only when
+    ``e >= rmse * sqrt(1 - (1 - min_gain)**2)`` (0.436 ``rmse`` at 10 %), and explains
+    ``noise_factor`` noise variances only when ``e >= sqrt(noise_factor) * sigma``.  The
+    larger of the two is returned (the sign-flip test, p < ``alpha``, comes on top: it also
+    needs the gain spread over the held-out blocks).  Above ``rmse`` no effect can pass:
+    the residual itself is too small.
+    """
+    gain_part = rmse * math.sqrt(max(1.0 - (1.0 - min_gain) ** 2, 0.0))
+    return float(max(gain_part, math.sqrt(max(noise_factor, 0.0)) * sigma))
 
 
 def correlation_length(res: list[Array]) -> float:
