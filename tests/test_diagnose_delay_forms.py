@@ -12,6 +12,8 @@ Lagrange form, a half-sample skew could be named rate dependence (an input lag):
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from preisach import PreisachModel, Recording, diagnose
@@ -89,3 +91,43 @@ def test_an_effect_name_stands_for_all_its_forms():
     assert [c.key for c in both] == ["delay/lagrange", "delay", "delay/first_order_lag"]
     with pytest.raises(ValueError, match="two instances of 'delay/lagrange'"):
         _resolve_candidates([LagrangeDelayCandidate(), LagrangeDelayCandidate()])
+
+
+def test_a_mode_whose_ring_is_over_within_two_samples_is_not_named():
+    """A 414 Hz mode with damping ratio 0.27 rings to 1/e in 1.4 samples at 1 kHz: no ring."""
+    from preisach.diagnose.candidates import ModeCandidate, TwoModesCandidate
+
+    ctx = SimpleNamespace(dt_min=DT, noise_sigma=0.0, y_span=1.0)
+    mode = ModeCandidate()
+    mode._classes = []
+    why = mode.implausible(np.array([413.6, 0.274, 1.0, 0.0]), ctx)
+    assert why is not None and "falls to 1/e within 1.4 sampling intervals" in why, why
+    # a seen true mode rang for 5.7 samples: 233 Hz, damping ratio 0.119
+    assert mode.implausible(np.array([232.7, 0.119, 1.0, 0.0]), ctx) is None
+    two = TwoModesCandidate()
+    two._classes = []
+    x = np.array([60.0, 0.05, 0.3, 413.6, 0.274, 0.2, 0.0])
+    assert "falls to 1/e" in (two.implausible(x, ctx) or ""), two.implausible(x, ctx)
+
+
+@pytest.mark.slow
+def test_a_bessel_anti_aliasing_filter_is_a_delay_not_a_mode(tmp_path):
+    """Blind seed 86's case 006 (scripts/blind2, written from physical descriptions only): the
+    output read through a 4th-order Bessel anti-aliasing filter of 0.5 ms group delay, 19 x
+    the noise.  A mode with a reaction fitted it as 414 Hz with damping ratio 0.27 (89 %
+    lower held-out RMSE; the one-parameter delay 75 %) and was named: a ring that falls to
+    1/e within 1.4 samples, which no sample shows.  Fails with ``MIN_RING_SAMPLES = 0``."""
+    from _paths import blind_identified
+
+    forms, model, ident, recs = blind_identified(tmp_path, 86, 6)
+    assert forms == ["bessel_antialias"]
+    rep = diagnose(
+        model,
+        recs,
+        identification=[ident],
+        candidates=["structural_resonance", "delay"],
+        progress=False,
+    )
+    assert rep.verdict == "delay", rep.summary()
+    rows = [r for r in rep.candidates if r["step"] == 1 and r["name"].startswith("structural")]
+    assert any("falls to 1/e" in r["decision"] for r in rows), rows
