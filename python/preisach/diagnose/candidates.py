@@ -819,11 +819,12 @@ class ModeCandidate(LinearDynamicsForm):
 
     #: Least time (sampling intervals) for a mode's ring to fall to 1/e of its start,
     #: ``1 / (2 pi f_n zeta)``: a shorter ring is over before the samples can show it ring.
-    #: Over the blind seeds' named modes (103 mode fits, seeds 65-86 and the first generator's
-    #: 90-92), the true ones rang for 5.7-1100 samples; the two below 2 were delays: a
-    #: 4th-order Bessel anti-aliasing filter of 0.5 ms (seed 86's case 006: 414 Hz, damping
-    #: ratio 0.27, 1.4 samples; named a resonance with an 89 % gain, the delay 75 %) and
-    #: seed 72's case 019 (a mode kept beside its delay, 1.4 samples).
+    #: Over the blind seeds' named modes (110 mode fits, seeds 65-86 and the first generator's
+    #: 90-92), the true ones rang for 5.7-1100 samples.  Below 2 were two Bessel anti-aliasing
+    #: filters of 0.5 ms (seed 86's case 006: 414 Hz, damping ratio 0.27, 1.4 samples, named a
+    #: resonance with an 89 % gain, the delay 75 %; seed 72's case 019, a mode kept beside its
+    #: delay) and three second modes of the two-mode form reported beside a first that rings
+    #: (overdamped, or at the frequency bound).
     MIN_RING_SAMPLES: ClassVar[float] = 2.0
 
     #: Group delay beyond a mode's own (samples) from which the block shows a delay beside it.

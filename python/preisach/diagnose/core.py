@@ -1086,7 +1086,8 @@ def _nameable(
     e = nameable_rms(rmse, sigma, min_gain, noise_factor)
     unit = ctx.output_unit
     ratio = e / sigma if sigma > 0 else float("inf")
-    which = "a further effect" if further else "an effect"
+    noun = "further effect" if further else "effect"
+    which = f"a {noun}" if further else f"an {noun}"
     if e >= rmse:
         text = (
             f"the held-out residual ({amount_text(rmse, unit, '.3g')}) is too small for "
@@ -1100,7 +1101,7 @@ def _nameable(
             else "is smaller than that"
         )
         text = (
-            f"smallest {which.split(' ', 1)[1]} these recordings could name: one that explains "
+            f"smallest {noun} these recordings could name: one that explains "
             f"{amount_text(e, unit, '.3g')} RMS of the held-out residual "
             f"({ratio:.2g} x the noise; {100 * min_gain:.0f} % of its "
             f"{amount_text(rmse, unit, '.3g')} and {noise_factor:g} noise variance, at "
