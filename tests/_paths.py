@@ -4,7 +4,8 @@ They are never copied into the repository (see ``../shared/data/README.md`` for 
 tests that need them skip, naming this folder, when it does not hold them.  Also: a script of
 ``scripts/`` loaded as a module (:func:`script_module`), and a case of the blind generator
 written to disk (:func:`blind_case`), and read with its identified model
-(:func:`blind_identified`; the first generator's: :func:`blind1_identified`).
+(:func:`blind_identified`; the first generator's: :func:`blind1_identified`), and diagnosed
+with some candidates as ``preisach diagnose`` would (:func:`blind_diagnosed`).
 """
 
 from __future__ import annotations
@@ -71,3 +72,16 @@ def blind_identified(out: Path, seed: int, index: int) -> tuple[list[str], Any, 
     ident = Recording.load(case / "id.csv")
     recs = [Recording.load(p) for p in sorted(case.glob("exp*.csv"))]
     return forms, identify([ident], progress=False).model, ident, recs
+
+
+def blind_diagnosed(
+    out: Path, seed: int, index: int, candidates: list[str]
+) -> tuple[list[str], Any]:
+    """:func:`blind_identified`, diagnosed with ``candidates`` and the sweep refitted with them
+    (as ``preisach diagnose`` does with the model file's stored sweep): the forms and the
+    report."""
+    from preisach.diagnose import diagnose
+
+    forms, model, ident, recs = blind_identified(out, seed, index)
+    rep = diagnose(model, recs, identification=[ident], candidates=candidates, progress=False)
+    return forms, rep

@@ -117,17 +117,10 @@ def test_a_bessel_anti_aliasing_filter_is_a_delay_not_a_mode(tmp_path):
     the noise.  A mode with a reaction fitted it as 414 Hz with damping ratio 0.27 (89 %
     lower held-out RMSE; the one-parameter delay 75 %) and was named: a ring that falls to
     1/e within 1.4 samples, which no sample shows.  Fails with ``MIN_RING_SAMPLES = 0``."""
-    from _paths import blind_identified
+    from _paths import blind_diagnosed
 
-    forms, model, ident, recs = blind_identified(tmp_path, 86, 6)
+    forms, rep = blind_diagnosed(tmp_path, 86, 6, ["structural_resonance", "delay"])
     assert forms == ["bessel_antialias"]
-    rep = diagnose(
-        model,
-        recs,
-        identification=[ident],
-        candidates=["structural_resonance", "delay"],
-        progress=False,
-    )
     assert rep.verdict == "delay", rep.summary()
     rows = [r for r in rep.candidates if r["step"] == 1 and r["name"].startswith("structural")]
     assert any("falls to 1/e" in r["decision"] for r in rows), rows

@@ -556,14 +556,10 @@ def test_loops_that_differ_are_named_where_even_the_fine_model_fails(tmp_path):
     makes at any resolution: named ``non_congruence``, with what it leaves reported as
     unexplained.  Fails without the loop test beyond the fine model (verdict
     ``unexplained``)."""
-    from _paths import blind_identified
-    from preisach.diagnose import diagnose
+    from _paths import blind_diagnosed
 
-    forms, model, ident, recs = blind_identified(tmp_path, 68, 0)
+    forms, rep = blind_diagnosed(tmp_path, 68, 0, ["non_congruence"])
     assert forms == ["moving_model"]
-    rep = diagnose(
-        model, recs, identification=[ident], candidates=["non_congruence"], progress=False
-    )
     assert rep.verdict == "non_congruence", rep.summary()
     check = rep.noise_test["classical"]
     assert check["ratio"] > 2.0 and check["found"] == "minor_loops", check["statement"]

@@ -110,13 +110,10 @@ def test_a_mode_in_a_recoiling_frame_is_named_with_its_frequency(model):
 def _blind_frame_mode(tmp_path: Path, seed: int, index: int) -> Any:
     """Blind case ``index`` of ``seed`` (a frame-reaction mode), diagnosed with the resonance
     forms from its identified model and sweep; the one effect, asserted named a resonance."""
-    from _paths import blind_identified
+    from _paths import blind_diagnosed
 
-    forms, model, ident, recs = blind_identified(tmp_path, seed, index)
+    forms, rep = blind_diagnosed(tmp_path, seed, index, ["structural_resonance"])
     assert forms == ["frame_reaction_mode"]
-    rep = diagnose(
-        model, recs, identification=[ident], candidates=["structural_resonance"], progress=False
-    )
     assert rep.verdict == "structural_resonance", rep.summary()
     (eff,) = rep.effects
     return eff

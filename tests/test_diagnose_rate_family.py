@@ -312,17 +312,10 @@ def test_a_creep_of_tenths_of_a_second_is_named_creep(tmp_path):
     late-share rule refused it ("a lag or rate dependence"), and a rate dependence that
     gained 15 % was named.  Nothing that acts faster explains half as much: it is a creep of
     tenths of a second.  Fails with ``CREEP_FAST_RIVAL = 0`` (verdict ``rate_dependence``)."""
-    from _paths import blind_identified
+    from _paths import blind_diagnosed
 
-    forms, model, ident, recs = blind_identified(tmp_path, 74, 17)
+    forms, rep = blind_diagnosed(tmp_path, 74, 17, ["creep", "rate_dependence", "delay"])
     assert forms == ["kelvin_voigt_chain"]
-    rep = diagnose(
-        model,
-        recs,
-        identification=[ident],
-        candidates=["creep", "rate_dependence", "delay"],
-        progress=False,
-    )
     assert rep.verdict == "creep", rep.summary()
     eff = rep.effects[0]
     assert "qualified although fast" in eff.evidence, eff.evidence
