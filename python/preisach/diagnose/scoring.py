@@ -51,6 +51,17 @@ class Score:
         """Held-out root-mean-square error (V)."""
         return math.sqrt(self.mse)
 
+    def improvement(self, than: Score, sigma: float, seed: int = 0) -> tuple[float, float, float]:
+        """Measure what this score improves on ``than``: the selection's three bars.
+
+        Returns the relative reduction of the held-out RMSE, the held-out mean-square error
+        removed in noise variances (``sigma``, V) and the one-sided sign-flip p over the
+        held-out blocks (:func:`sign_flip_p`).
+        """
+        gain = 1.0 - self.rmse / than.rmse if than.rmse > 0 else 0.0
+        expl = (than.mse - self.mse) / sigma**2 if sigma > 0 else float("inf")
+        return gain, expl, sign_flip_p(than.sse_blocks - self.sse_blocks, seed=seed)
+
 
 def make_folds(recs: list[Rec], scheme: str, max_groups: int = 3) -> list[Fold]:
     """Make the folds: ``"recordings"`` holds out groups of recordings, ``"blocks"`` time blocks.

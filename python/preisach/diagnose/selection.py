@@ -529,9 +529,7 @@ def _drift_beside_creep(
 
     def adds(sc: Score, than: Score) -> tuple[float, float] | None:
         """Return the pair's held-out gain over ``than`` and its p, if it passes the bars."""
-        gain = 1.0 - sc.rmse / than.rmse if than.rmse > 0 else 0.0
-        expl = (than.mse - sc.mse) / sigma**2 if sigma > 0 else float("inf")
-        p = sign_flip_p(than.sse_blocks - sc.sse_blocks, seed=seed)
+        gain, expl, p = sc.improvement(than, sigma, seed)
         return (gain, p) if gain >= min_gain and expl >= noise_factor and p < alpha else None
 
     for cand, alone in creeps:
@@ -1062,9 +1060,7 @@ def run_selection(
         why_ring: dict[str, str] = {}
         for name, sc in scores.items():
             d = baseline.sse_blocks - sc.sse_blocks
-            pv[name] = sign_flip_p(d, seed=len(steps))
-            gains[name] = 1.0 - sc.rmse / baseline.rmse if baseline.rmse > 0 else 0.0
-            expl[name] = (baseline.mse - sc.mse) / sigma**2 if sigma > 0 else float("inf")
+            gains[name], expl[name], pv[name] = sc.improvement(baseline, sigma, len(steps))
             reasons = []
             if gains[name] < min_gain:
                 reasons.append(
