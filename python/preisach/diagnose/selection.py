@@ -508,7 +508,7 @@ def _drift_beside_creep(
     sigma: float,
     bars: tuple[float, float, float],
     seed: int = 0,
-) -> str | None:
+) -> tuple[str | None, dict[str, list[Chain]]]:
     """Why a drift that follows the input steps is still a drift: a creep beside it (or None).
 
     A drift curve fitted alone takes up a creep beside it too, and then moves on in the
@@ -524,6 +524,9 @@ def _drift_beside_creep(
     named by that next step.  The first blind generator's seed 91 had two mixtures of a
     sensor drift and creep that ended ``unexplained`` this way (the drift gaining 69 and
     61 %, the creep 4.5 and 9.1 %; docs/diagnosis.md, section 5zj).
+
+    Also returns the creep forms' fits after the drift (per fold, by candidate key): the
+    next step's fits when the drift is kept.
     """
     min_gain, noise_factor, alpha = bars
 
@@ -532,8 +535,10 @@ def _drift_beside_creep(
         gain, expl, p = sc.improvement(than, sigma, seed)
         return (gain, p) if gain >= min_gain and expl >= noise_factor and p < alpha else None
 
+    fitted: dict[str, list[Chain]] = {}
     for cand, alone in creeps:
         cc = [ctx.fit(cand, ch, f.train, True) for ch, f in zip(chains, folds)]
+        fitted[cand.key] = cc
         sc = heldout_score(ctx, folds, cc, True)
         creep, drift = adds(sc, score), adds(sc, alone)
         if creep is None or drift is None:
@@ -544,8 +549,8 @@ def _drift_beside_creep(
             f"fitted with {cand.key} it does not; {cand.key} lowers its held-out RMSE by a "
             f"further {100 * creep[0]:.0f} % (p = {creep[1]:.2g}), and the pair is "
             f"{100 * drift[0]:.0f} % below {cand.key} alone (p = {drift[1]:.2g})"
-        )
-    return None
+        ), fitted
+    return None, fitted
 
 
 def _feedback_within_classical(
@@ -1023,13 +1028,18 @@ def run_selection(
     pieces = hold_pieces(ctx)
     steps: list[StepResult] = []
     remaining = {c.key: c for c in candidates}
+    fitted: dict[str, list[Chain]] = {}  # this step's fits made in the last one
     while remaining and len(kept) < max_effects:
         scores: dict[str, Score] = {}
         new_chains: dict[str, list[Chain]] = {}
         n_par: dict[str, float] = {}
         for name, cand in remaining.items():
             t0 = _time.perf_counter()
-            if isinstance(cand, DriftCandidate):
+            if name in fitted:  # a creep fitted after the drift kept beside it
+                new_chains[name] = fitted[name]
+                scores[name] = heldout_score(ctx, folds, fitted[name], drift)
+                n_par[name] = float(cand.n_params(ctx))
+            elif isinstance(cand, DriftCandidate):
                 if all(ctx.refits(ch) for ch in chains):
                     cc = [
                         Chain(ctx.refit_base(ch.effects, ch.base, f.train, True), ch.effects)
@@ -1221,13 +1231,14 @@ def run_selection(
         # one that follows the input steps only because it took up a creep beside it is
         # named when, fitted with that creep, it no longer does (_drift_beside_creep)
         creep_forms = [(remaining[n], scores[n]) for n in scores if remaining[n].name == "creep"]
-        beside_creep: set[str] = set()
+        beside_creep: dict[str, dict[str, list[Chain]]] = {}  # and the creep fits after it
         for name in scores:
             if ok[name] and isinstance(remaining[name], DriftCandidate):
                 bad, by_steps = drift_refuted_by_holds(ctx, new_chains[name], sigma)
-                beside = None
+                beside: str | None = None
+                after: dict[str, list[Chain]] = {}
                 if bad and by_steps and creep_forms:
-                    beside = _drift_beside_creep(
+                    beside, after = _drift_beside_creep(
                         ctx,
                         creep_forms,
                         new_chains[name],
@@ -1239,7 +1250,7 @@ def run_selection(
                     )
                 if beside:
                     why[name] = f"qualifies beside creep: {bad}, but {beside}"
-                    beside_creep.add(name)
+                    beside_creep[name] = after
                 else:
                     _refuse(ok, why, name, bad)
         # so is a feedback of the output (_feedback_within_classical)
@@ -1310,6 +1321,7 @@ def run_selection(
         kept.append(chosen)
         if isinstance(remaining[chosen], DriftCandidate):
             drift = True
+        fitted = beside_creep.get(chosen, {})
         chains = new_chains[chosen]
         baseline = scores[chosen]
         name = remaining[chosen].name
