@@ -718,6 +718,7 @@ def beyond_classical(
     state_knots: int = CHECK_STATE_KNOTS,
     seed: int = 0,
     penalty: Array | None = None,
+    kept: list[Array] | None = None,
 ) -> BeyondClassical:
     """Measure what an effect's own columns add to :func:`classical_check`'s fine model.
 
@@ -734,11 +735,16 @@ def beyond_classical(
     initial states, not its own physics.  ``penalty``: the effect's own regularisation of
     the shared coefficients (``m x m``, relative to the mean diagonal of their normal
     matrix), e.g. a smoothness across rate; ``own_penalties``: per recording, the penalty
-    (absolute, V^-2 units of the normal matrix) of its own columns.  ``sigma`` is the noise
-    (V).  :attr:`BeyondClassical.coef` holds the added coefficients (own, then shared).
+    (absolute, V^-2 units of the normal matrix) of its own columns.  ``kept``: per recording,
+    what the effects already kept make (columns shared by all recordings, a free scale each),
+    in both models - the effect must add to the fine model *and* them, and what they explain
+    is not left in the blocks the sign-flip test compares.  ``sigma`` is the noise (V).
+    :attr:`BeyondClassical.coef` holds the added coefficients (own, then shared).
     """
     t0 = time.perf_counter()
     base = fine_system(ctx, levels=levels, stretch=stretch, state_knots=state_knots)
+    if kept is not None:
+        base = base.extended(shared=kept)
     _, sse0, cnt = base.fit(smoothing)
     fs = base.extended(own=own, shared=columns)
     P0, P = base.A.shape[1], fs.A.shape[1]
