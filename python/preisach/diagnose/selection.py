@@ -41,7 +41,8 @@ Procedure (see :func:`preisach.diagnose.diagnose` for the user-facing descriptio
    its coefficients (the Everett family, the calibrations:
    :meth:`~.candidates.Candidate.classical_columns`) qualifies only when those columns also
    add :data:`FORM_BEYOND_CLASSICAL` noise variances to the resolution check's fine
-   classical model (:func:`~.scoring.beyond_classical`), as a drift must; so do an output
+   classical model (:func:`~.scoring.beyond_classical`), as a drift must (beside what the
+   effects kept so far make: :func:`_drift_beyond_classical`); so do an output
    feedback's fitted contribution (:func:`_feedback_within_classical`) and creep's relaxation
    bank, unless the held-out holds show the creep (:func:`_creep_within_classical`).
    An effect that
