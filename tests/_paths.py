@@ -5,7 +5,8 @@ tests that need them skip, naming this folder, when it does not hold them.  Also
 ``scripts/`` loaded as a module (:func:`script_module`), and a case of the blind generator
 written to disk (:func:`blind_case`), and read with its identified model
 (:func:`blind_identified`; the first generator's: :func:`blind1_identified`), and diagnosed
-with some candidates as ``preisach diagnose`` would (:func:`blind_diagnosed`).
+with some candidates as ``preisach diagnose`` would (:func:`blind_diagnosed`,
+:func:`blind1_diagnosed`).
 """
 
 from __future__ import annotations
@@ -85,3 +86,19 @@ def blind_diagnosed(
     forms, model, ident, recs = blind_identified(out, seed, index)
     rep = diagnose(model, recs, identification=[ident], candidates=candidates, progress=False)
     return forms, rep
+
+
+def blind1_diagnosed(
+    out: Path,
+    kind: str | list[str],
+    form: str | list[str | None] | None,
+    seed: int,
+    candidates: list[str],
+) -> tuple[dict[str, Any], Any]:
+    """:func:`blind1_identified`, diagnosed with ``candidates`` and the sweep refitted with
+    them (as :func:`blind_diagnosed`): the truth and the report."""
+    from preisach.diagnose import diagnose
+
+    truth, model, ident, recs = blind1_identified(out, kind, form, seed)
+    rep = diagnose(model, recs, identification=[ident], candidates=candidates, progress=False)
+    return truth, rep

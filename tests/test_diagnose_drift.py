@@ -212,16 +212,12 @@ def test_a_drift_beside_creep_of_the_first_blind_generator_is_named(tmp_path):
     of time. Fitted alone, the drift gained 61 % of the held-out RMSE but followed the input
     steps (t = 5.5 over four holds), and the creep alone gained 9 %: ``unexplained`` at
     12 x the noise. Fails when the drift is not fitted beside the creep."""
-    from _paths import blind1_identified
+    from _paths import blind1_diagnosed
 
     # a mixture's forms drawn by the generator, as its study run does
-    truth, model, ident, recs = blind1_identified(
-        tmp_path, ["sensor_drift", "creep"], [None, None], 9100012
-    )
+    kinds = ["sensor_drift", "creep"]
+    truth, rep = blind1_diagnosed(tmp_path, kinds, [None, None], 9100012, kinds)
     assert truth["forms"] == ["random_walk", "power_law_input"], truth["forms"]
-    rep = diagnose(
-        model, recs, identification=[ident], candidates=["sensor_drift", "creep"], progress=False
-    )
     assert [e.name for e in rep.effects] == ["sensor_drift", "creep"], rep.summary()
     assert rep.noise_test["ratio"] < 3.0, rep.summary()
 
@@ -235,13 +231,9 @@ def test_a_drift_beside_a_kept_delay_is_measured_beyond_it(tmp_path):
     variances but at sign-flip p 0.028, the delay's residual left in the blocks compared, and
     was refused (the full run named a non-congruence instead). Measured beside the delay it
     passes. Fails when the drift's check leaves out the effects already kept."""
-    from _paths import blind1_identified
+    from _paths import blind1_diagnosed
 
-    truth, model, ident, recs = blind1_identified(
-        tmp_path, ["delay", "sensor_drift"], [None, None], 9400006
-    )
+    kinds = ["delay", "sensor_drift"]
+    truth, rep = blind1_diagnosed(tmp_path, kinds, [None, None], 9400006, kinds)
     assert truth["forms"] == ["fir_group_delay", "linear_plus_cycle"], truth["forms"]
-    rep = diagnose(
-        model, recs, identification=[ident], candidates=["delay", "sensor_drift"], progress=False
-    )
     assert [e.name for e in rep.effects] == ["delay", "sensor_drift"], rep.summary()

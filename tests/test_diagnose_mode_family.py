@@ -216,15 +216,16 @@ def test_two_modes_of_the_first_blind_generator_are_both_named(tmp_path):
     ``unexplained`` at 14 x the noise: one mode scanned under a zero- or first-order hold on
     every fourth sample found 162 Hz in one fold (337 Hz aliased onto it) and predicted
     held-out data worse than no mode."""
-    from _paths import blind1_identified
+    from _paths import blind1_diagnosed
 
-    truth, model, ident, recs = blind1_identified(
-        tmp_path, "structural_resonance", "two_mode_noncollocated", 9000001
+    truth, rep = blind1_diagnosed(
+        tmp_path,
+        "structural_resonance",
+        "two_mode_noncollocated",
+        9000001,
+        ["structural_resonance"],
     )
     (want,) = truth["effects"]
-    rep = diagnose(
-        model, recs, identification=[ident], candidates=["structural_resonance"], progress=False
-    )
     assert rep.verdict == "structural_resonance", rep.summary()
     (eff,) = rep.effects
     par = {k: v["value"] for k, v in eff.parameters.items()}
